@@ -1,0 +1,867 @@
+//! A BOP dataset exactly as it lies on disk, read once before an evaluation so that every
+//! file problem surfaces up front, naming the file and the field, instead of halfway through
+//! hours of rendering. Only the scenes the targets file asks for are read (real datasets hold
+//! many more), and depth images are decoded on demand because they dominate the memory.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Display;
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use serde::de::DeserializeOwned;
+
+use crate::error::{Error, Result};
+use crate::math::{Intrinsics, Pose};
+use crate::mesh::Mesh;
+use crate::ply::read_ply;
+
+/// A continuous rotational symmetry about `axis` through the point `offset` (model frame, mm).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContinuousSymmetry {
+    pub axis: [f64; 3],
+    pub offset: [f64; 3],
+}
+
+/// One entry of models_info.json.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelInfo {
+    pub diameter: f64,
+    /// Row-major 4x4 transformations, translation in mm.
+    pub symmetries_discrete: Vec<[f64; 16]>,
+    pub symmetries_continuous: Vec<ContinuousSymmetry>,
+}
+
+impl ModelInfo {
+    /// Whether any symmetry is declared (bop_toolkit's `symmetric_obj_ids`).
+    pub fn is_symmetric(&self) -> bool {
+        !self.symmetries_discrete.is_empty() || !self.symmetries_continuous.is_empty()
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    pub id: u32,
+    pub mesh: Mesh,
+    pub info: ModelInfo,
+}
+
+/// One ground-truth instance; its index in [`Image::gt`] is the GT id of the BOP files.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GtInstance {
+    pub obj_id: u32,
+    pub pose: Pose,
+    pub visib_fract: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub id: u32,
+    pub camera: Intrinsics,
+    /// Multiplier from depth PNG values to millimetres.
+    pub depth_scale: f64,
+    pub gt: Vec<GtInstance>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    pub id: u32,
+    pub images: BTreeMap<u32, Image>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Target {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub obj_id: u32,
+    pub inst_count: u32,
+}
+
+/// Which split and targets file to read; BOP'19 evaluates `test` with `test_targets_bop19.json`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DatasetOptions {
+    pub split: String,
+    pub targets_file: String,
+}
+
+impl Default for DatasetOptions {
+    fn default() -> Self {
+        DatasetOptions {
+            split: "test".to_string(),
+            targets_file: "test_targets_bop19.json".to_string(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Dataset {
+    /// The folder name, which is the dataset name in result file names.
+    pub name: String,
+    pub root: PathBuf,
+    pub split_dir: PathBuf,
+    pub objects: BTreeMap<u32, Object>,
+    pub scenes: BTreeMap<u32, Scene>,
+    /// In the order of the targets file.
+    pub targets: Vec<Target>,
+    /// (width, height) in pixels.
+    pub image_size: (u32, u32),
+}
+
+/// A depth image in millimetres; 0 means no measurement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DepthImage {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major: `data[y * width + x]`.
+    pub data: Vec<f32>,
+}
+
+impl Dataset {
+    /// Loads the `test` split with `test_targets_bop19.json`.
+    pub fn load(root: &Path) -> Result<Dataset> {
+        Dataset::load_with(root, &DatasetOptions::default())
+    }
+
+    pub fn load_with(root: &Path, opts: &DatasetOptions) -> Result<Dataset> {
+        let split_dir = root.join(&opts.split);
+        let targets_path = root.join(&opts.targets_file);
+        let targets: Vec<Target> = read_json::<Vec<RawTarget>>(&targets_path)?
+            .into_iter()
+            .map(|t| Target {
+                scene_id: t.scene_id,
+                im_id: t.im_id,
+                obj_id: t.obj_id,
+                inst_count: t.inst_count,
+            })
+            .collect();
+        if targets.is_empty() {
+            return Err(Error::format(&targets_path, "the file lists no targets"));
+        }
+
+        let models_dir = [root.join("models_eval"), root.join("models")]
+            .into_iter()
+            .find(|d| d.is_dir())
+            .unwrap_or_else(|| root.join("models"));
+        let infos = load_models_info(root, &models_dir)?;
+
+        let scene_ids: BTreeSet<u32> = targets.iter().map(|t| t.scene_id).collect();
+        let scenes = scene_ids
+            .into_iter()
+            .map(|id| Ok((id, load_scene(&split_dir, id)?)))
+            .collect::<Result<BTreeMap<u32, Scene>>>()?;
+
+        // Checked before the meshes are read: a wrong target is cheaper to report than a
+        // large mesh is to parse.
+        for (n, t) in targets.iter().enumerate() {
+            let which = format!(
+                "target {n} (scene_id {}, im_id {}, obj_id {})",
+                t.scene_id, t.im_id, t.obj_id
+            );
+            if !infos.contains_key(&t.obj_id) {
+                return Err(Error::format(
+                    &targets_path,
+                    format!(
+                        "{which}: object {} has no entry in {}",
+                        t.obj_id,
+                        models_dir.join("models_info.json").display()
+                    ),
+                ));
+            }
+            if !scenes[&t.scene_id].images.contains_key(&t.im_id) {
+                return Err(Error::format(
+                    &targets_path,
+                    format!(
+                        "{which}: image {} is not in {}",
+                        t.im_id,
+                        scene_dir(&split_dir, t.scene_id)
+                            .join("scene_gt.json")
+                            .display()
+                    ),
+                ));
+            }
+        }
+
+        let objects = infos
+            .into_iter()
+            .map(|(id, info)| {
+                let mesh = read_ply(&models_dir.join(format!("obj_{id:06}.ply")))?;
+                Ok((id, Object { id, mesh, info }))
+            })
+            .collect::<Result<BTreeMap<u32, Object>>>()?;
+
+        let name = root
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .or_else(|| {
+                let canonical = root.canonicalize().ok()?;
+                Some(canonical.file_name()?.to_string_lossy().into_owned())
+            })
+            .unwrap_or_default();
+
+        let mut dataset = Dataset {
+            name,
+            root: root.to_path_buf(),
+            split_dir,
+            objects,
+            scenes,
+            targets,
+            image_size: (0, 0),
+        };
+        dataset.image_size = dataset.find_image_size()?;
+        Ok(dataset)
+    }
+
+    pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
+        scene_dir(&self.split_dir, scene_id)
+            .join("depth")
+            .join(format!("{im_id:06}.png"))
+    }
+
+    /// Depth in mm: the PNG value (as f32) times `depth_scale` (as f32), the float32
+    /// arithmetic of bop_toolkit, so that VSD sees the very same depths. 0 = no measurement.
+    pub fn load_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthImage> {
+        let path = self.depth_path(scene_id, im_id);
+        let image = self
+            .scenes
+            .get(&scene_id)
+            .and_then(|s| s.images.get(&im_id))
+            .ok_or_else(|| {
+                Error::format(
+                    &path,
+                    format!("scene {scene_id}, image {im_id} is not among the target images"),
+                )
+            })?;
+        read_depth_png(&path, image.depth_scale as f32)
+    }
+
+    /// The camera files state the sensor size; only datasets without them fall back to the
+    /// size of a depth image.
+    fn find_image_size(&self) -> Result<(u32, u32)> {
+        let mut candidates = Vec::new();
+        let main = self.root.join("camera.json");
+        if main.is_file() {
+            candidates.push(main);
+        }
+        let entries = std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))?;
+        let mut others = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(|e| Error::io(&self.root, e))?;
+            let name = entry.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with("camera") && name.ends_with(".json") && name != "camera.json" {
+                others.push(entry.path());
+            }
+        }
+        others.sort();
+        candidates.extend(others);
+        for path in candidates {
+            if let RawCameraSize {
+                width: Some(w),
+                height: Some(h),
+            } = read_json(&path)?
+            {
+                return Ok((w, h));
+            }
+        }
+        let first = self.targets[0];
+        png_size(&self.depth_path(first.scene_id, first.im_id))
+    }
+}
+
+fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
+    split_dir.join(format!("{scene_id:06}"))
+}
+
+#[derive(Deserialize)]
+struct RawTarget {
+    scene_id: u32,
+    im_id: u32,
+    obj_id: u32,
+    inst_count: u32,
+}
+
+#[derive(Deserialize)]
+struct RawModelInfo {
+    diameter: f64,
+    #[serde(default)]
+    symmetries_discrete: Vec<Vec<f64>>,
+    #[serde(default)]
+    symmetries_continuous: Vec<RawContinuousSymmetry>,
+}
+
+#[derive(Deserialize)]
+struct RawContinuousSymmetry {
+    axis: Vec<f64>,
+    offset: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+struct RawCamera {
+    #[serde(rename = "cam_K")]
+    cam_k: Vec<f64>,
+    depth_scale: Option<f64>,
+}
+
+#[derive(Deserialize)]
+struct RawGt {
+    obj_id: u32,
+    #[serde(rename = "cam_R_m2c")]
+    cam_r_m2c: Vec<f64>,
+    cam_t_m2c: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+struct RawGtInfo {
+    visib_fract: f64,
+}
+
+#[derive(Deserialize)]
+struct RawCameraSize {
+    width: Option<u32>,
+    height: Option<u32>,
+}
+
+fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_slice(&bytes).map_err(|e| Error::format(path, e.to_string()))
+}
+
+/// Reads a JSON object whose keys are ids ("3") into a map keyed by number.
+fn read_id_map<T: DeserializeOwned>(path: &Path, what: &str) -> Result<BTreeMap<u32, T>> {
+    read_json::<BTreeMap<String, T>>(path)?
+        .into_iter()
+        .map(|(key, value)| {
+            let id = key
+                .parse::<u32>()
+                .map_err(|_| Error::format(path, format!("key \"{key}\" is not {what} id")))?;
+            Ok((id, value))
+        })
+        .collect()
+}
+
+/// A fixed-size field, with an error naming where it is when the length is wrong.
+fn fixed<const N: usize>(
+    values: &[f64],
+    path: &Path,
+    place: impl Display,
+    field: &str,
+) -> Result<[f64; N]> {
+    values.try_into().map_err(|_| {
+        Error::format(
+            path,
+            format!(
+                "{place}: field {field}: expected {N} numbers, found {}",
+                values.len()
+            ),
+        )
+    })
+}
+
+fn load_models_info(root: &Path, models_dir: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
+    let mut path = models_dir.join("models_info.json");
+    if !path.is_file() {
+        path = root.join("models").join("models_info.json");
+    }
+    read_id_map::<RawModelInfo>(&path, "an object")?
+        .into_iter()
+        .map(|(id, raw)| {
+            let place = format!("object \"{id}\"");
+            let symmetries_discrete = raw
+                .symmetries_discrete
+                .iter()
+                .enumerate()
+                .map(|(i, m)| {
+                    fixed(
+                        m,
+                        &path,
+                        format_args!("{place}, symmetry {i}"),
+                        "symmetries_discrete",
+                    )
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let symmetries_continuous = raw
+                .symmetries_continuous
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let at = format!("{place}, continuous symmetry {i}");
+                    Ok(ContinuousSymmetry {
+                        axis: fixed(&s.axis, &path, &at, "axis")?,
+                        offset: fixed(&s.offset, &path, &at, "offset")?,
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let info = ModelInfo {
+                diameter: raw.diameter,
+                symmetries_discrete,
+                symmetries_continuous,
+            };
+            Ok((id, info))
+        })
+        .collect()
+}
+
+/// Images are those of scene_gt.json; scene_camera.json and scene_gt_info.json must
+/// describe each of them, instance for instance, since GT ids are list positions.
+fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
+    let dir = scene_dir(split_dir, scene_id);
+    let camera_path = dir.join("scene_camera.json");
+    let gt_path = dir.join("scene_gt.json");
+    let info_path = dir.join("scene_gt_info.json");
+    let cameras = read_id_map::<RawCamera>(&camera_path, "an image")?;
+    let gts = read_id_map::<Vec<RawGt>>(&gt_path, "an image")?;
+    let infos = read_id_map::<Vec<RawGtInfo>>(&info_path, "an image")?;
+
+    let mut images = BTreeMap::new();
+    for (im_id, gt) in gts {
+        let missing = |path: &Path| {
+            Error::format(
+                path,
+                format!("image \"{im_id}\" is missing (it is listed in scene_gt.json)"),
+            )
+        };
+        let camera = cameras.get(&im_id).ok_or_else(|| missing(&camera_path))?;
+        let info = infos.get(&im_id).ok_or_else(|| missing(&info_path))?;
+        if info.len() != gt.len() {
+            return Err(Error::format(
+                &info_path,
+                format!(
+                    "image \"{im_id}\": {} instances, but scene_gt.json has {}",
+                    info.len(),
+                    gt.len()
+                ),
+            ));
+        }
+        let k = fixed(
+            &camera.cam_k,
+            &camera_path,
+            format_args!("image \"{im_id}\""),
+            "cam_K",
+        )?;
+        let gt = gt
+            .iter()
+            .zip(info)
+            .enumerate()
+            .map(|(i, (g, info))| {
+                let place = format!("image \"{im_id}\", instance {i}");
+                let r = fixed(&g.cam_r_m2c, &gt_path, &place, "cam_R_m2c")?;
+                let t = fixed(&g.cam_t_m2c, &gt_path, &place, "cam_t_m2c")?;
+                Ok(GtInstance {
+                    obj_id: g.obj_id,
+                    pose: Pose::from_row_major(&r, &t),
+                    visib_fract: info.visib_fract,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let image = Image {
+            id: im_id,
+            camera: Intrinsics::from_row_major(&k),
+            depth_scale: camera.depth_scale.unwrap_or(1.0),
+            gt,
+        };
+        images.insert(im_id, image);
+    }
+    Ok(Scene {
+        id: scene_id,
+        images,
+    })
+}
+
+fn png_error(path: &Path, e: png::DecodingError) -> Error {
+    match e {
+        png::DecodingError::IoError(e) => Error::io(path, e),
+        other => Error::format(path, format!("invalid PNG: {other}")),
+    }
+}
+
+fn png_decoder(path: &Path) -> Result<png::Decoder<BufReader<File>>> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    // Raw samples: no expansion or 16-to-8 stripping may alter the depth values.
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    Ok(decoder)
+}
+
+fn png_size(path: &Path) -> Result<(u32, u32)> {
+    let mut decoder = png_decoder(path)?;
+    let info = decoder.read_header_info().map_err(|e| png_error(path, e))?;
+    Ok((info.width, info.height))
+}
+
+/// Deflate expands data at most about 1032-fold; a header promising more pixels than that
+/// is corrupt, and is rejected before its buffer is allocated.
+const MAX_DEFLATE_RATIO: u64 = 1032;
+
+fn read_depth_png(path: &Path, depth_scale: f32) -> Result<DepthImage> {
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    let mut reader = png_decoder(path)?
+        .read_info()
+        .map_err(|e| png_error(path, e))?;
+    let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
+    let sixteen = match (color, bits) {
+        (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
+        (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
+        _ => {
+            return Err(Error::format(
+                path,
+                format!(
+                    "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
+                     {color:?} with bit depth {}",
+                    bits as u8
+                ),
+            ));
+        }
+    };
+    let (width, height) = (reader.info().width, reader.info().height);
+    let size = reader
+        .output_buffer_size()
+        .filter(|&n| n as u64 <= file_len.saturating_mul(MAX_DEFLATE_RATIO))
+        .ok_or_else(|| {
+            Error::format(
+                path,
+                format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
+            )
+        })?;
+    let mut buf = vec![0u8; size];
+    reader
+        .next_frame(&mut buf)
+        .map_err(|e| png_error(path, e))?;
+    // Samples are big-endian and rows unpadded at 8 and 16 bits.
+    let data: Vec<f32> = if sixteen {
+        buf.chunks_exact(2)
+            .map(|b| f32::from(u16::from_be_bytes([b[0], b[1]])) * depth_scale)
+            .collect()
+    } else {
+        buf.iter().map(|&v| f32::from(v) * depth_scale).collect()
+    };
+    Ok(DepthImage {
+        width,
+        height,
+        data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const REFERENCE: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/fixtures/reference/dataset"
+    );
+
+    fn reference() -> Dataset {
+        Dataset::load(Path::new(REFERENCE)).unwrap()
+    }
+
+    /// A writable copy of the reference dataset (without the RGB images nobody reads).
+    fn copy() -> tempfile::TempDir {
+        fn copy_dir(from: &Path, to: &Path) {
+            std::fs::create_dir_all(to).unwrap();
+            for entry in std::fs::read_dir(from).unwrap() {
+                let entry = entry.unwrap();
+                let target = to.join(entry.file_name());
+                if entry.file_type().unwrap().is_dir() {
+                    if entry.file_name() != "rgb" {
+                        copy_dir(&entry.path(), &target);
+                    }
+                } else {
+                    std::fs::copy(entry.path(), target).unwrap();
+                }
+            }
+        }
+        let dir = tempfile::tempdir().unwrap();
+        copy_dir(Path::new(REFERENCE), &dir.path().join("synthA"));
+        dir
+    }
+
+    fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+        let mut value: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+        edit(&mut value);
+        std::fs::write(path, serde_json::to_vec(&value).unwrap()).unwrap();
+    }
+
+    fn load_error(dir: &tempfile::TempDir) -> Error {
+        Dataset::load(&dir.path().join("synthA")).unwrap_err()
+    }
+
+    #[test]
+    fn loads_the_reference_dataset() {
+        let d = reference();
+        assert_eq!(d.name, "dataset");
+        assert_eq!(d.split_dir, Path::new(REFERENCE).join("test"));
+        assert_eq!(d.objects.keys().copied().collect::<Vec<_>>(), [1, 2, 3, 4]);
+        assert_eq!(d.objects[&1].mesh.vertices.len(), 772);
+        assert_eq!(d.objects[&1].mesh.triangles.len(), 1536);
+        assert!(!d.objects[&1].info.is_symmetric());
+        assert!((d.objects[&1].info.diameter - 101.61200716450787).abs() < 1e-12);
+        assert_eq!(d.objects[&2].info.symmetries_discrete.len(), 3);
+        assert!(d.objects[&2].info.symmetries_continuous.is_empty());
+        let cylinder = &d.objects[&3].info;
+        assert_eq!(cylinder.symmetries_discrete.len(), 1);
+        assert_eq!(cylinder.symmetries_continuous.len(), 1);
+        assert_eq!(cylinder.symmetries_continuous[0].axis, [0.0, 0.0, 1.0]);
+        assert!(cylinder.is_symmetric());
+
+        assert_eq!(d.scenes.keys().copied().collect::<Vec<_>>(), [1, 2]);
+        for scene in d.scenes.values() {
+            assert_eq!(
+                scene.images.keys().copied().collect::<Vec<_>>(),
+                [0, 1, 2, 3]
+            );
+        }
+        assert_eq!(d.targets.len(), 28);
+        assert_eq!(d.targets.iter().map(|t| t.inst_count).sum::<u32>(), 33);
+        assert_eq!(
+            d.targets[0],
+            Target {
+                scene_id: 1,
+                im_id: 0,
+                obj_id: 3,
+                inst_count: 2
+            }
+        );
+        assert_eq!(d.image_size, (640, 480));
+
+        let image = &d.scenes[&1].images[&0];
+        assert_eq!(image.id, 0);
+        assert_eq!(image.depth_scale, 1.0);
+        assert_eq!(image.camera.fx(), 572.4);
+        assert_eq!(image.camera.cy(), 242.0);
+        assert_eq!(image.gt[0].visib_fract, 0.5205811138014528);
+        let r = image.gt[0].pose.r;
+        assert!((r * r.transpose() - crate::math::Mat3::identity()).norm() < 1e-6);
+        assert!(image.gt[0].pose.t.z > 100.0);
+    }
+
+    #[test]
+    fn loads_depth_on_demand() {
+        let d = reference();
+        assert_eq!(
+            d.depth_path(1, 2),
+            Path::new(REFERENCE).join("test/000001/depth/000002.png")
+        );
+        let depth = d.load_depth(1, 0).unwrap();
+        assert_eq!((depth.width, depth.height), (640, 480));
+        assert_eq!(depth.data.len(), 640 * 480);
+        // The table fills the lower image rows, about 0.5 to 1 m away.
+        let v = depth.data[460 * 640 + 100];
+        assert!(v > 0.0 && v < 2000.0, "{v}");
+        assert!(depth.data.iter().all(|&v| (0.0..2000.0).contains(&v)));
+        assert!(depth.data.iter().filter(|&&v| v > 0.0).count() > 640 * 480 / 2);
+        assert!(matches!(d.load_depth(7, 0), Err(Error::Format { .. })));
+    }
+
+    #[test]
+    fn depth_scale_is_applied_in_f32() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        edit_json(&root.join("test/000001/scene_camera.json"), |v| {
+            v["0"]["depth_scale"] = serde_json::json!(0.1);
+        });
+        let d = Dataset::load(&root).unwrap();
+        let raw = reference().load_depth(1, 0).unwrap();
+        let scaled = d.load_depth(1, 0).unwrap();
+        for (a, b) in raw.data.iter().zip(&scaled.data) {
+            assert_eq!(*b, a * 0.1_f32);
+        }
+    }
+
+    fn write_png(path: &Path, color: png::ColorType, depth: png::BitDepth, data: &[u8]) {
+        let file = std::io::BufWriter::new(File::create(path).unwrap());
+        let mut encoder = png::Encoder::new(file, 2, 2);
+        encoder.set_color(color);
+        encoder.set_depth(depth);
+        encoder
+            .write_header()
+            .unwrap()
+            .write_image_data(data)
+            .unwrap();
+    }
+
+    #[test]
+    fn depth_png_formats() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        let d = Dataset::load(&root).unwrap();
+        let path = d.depth_path(1, 0);
+
+        write_png(
+            &path,
+            png::ColorType::Grayscale,
+            png::BitDepth::Eight,
+            &[0, 1, 200, 255],
+        );
+        assert_eq!(d.load_depth(1, 0).unwrap().data, [0.0, 1.0, 200.0, 255.0]);
+
+        let big_endian = [0x00, 0x00, 0x01, 0x02, 0xff, 0xff, 0x12, 0x34];
+        write_png(
+            &path,
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            &big_endian,
+        );
+        let depth = d.load_depth(1, 0).unwrap();
+        assert_eq!((depth.width, depth.height), (2, 2));
+        assert_eq!(depth.data, [0.0, 258.0, 65535.0, 4660.0]);
+
+        write_png(&path, png::ColorType::Rgb, png::BitDepth::Eight, &[0; 12]);
+        let msg = d.load_depth(1, 0).unwrap_err().to_string();
+        assert!(msg.contains("000000.png") && msg.contains("Rgb"), "{msg}");
+
+        std::fs::write(&path, b"not a png").unwrap();
+        assert!(matches!(d.load_depth(1, 0), Err(Error::Format { .. })));
+    }
+
+    #[test]
+    fn image_size_falls_back_to_other_cameras_then_depth() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        std::fs::remove_file(root.join("camera.json")).unwrap();
+        std::fs::write(
+            root.join("camera_b.json"),
+            r#"{"width": 720, "height": 540}"#,
+        )
+        .unwrap();
+        std::fs::write(root.join("camera_a.json"), r#"{"fx": 1.0}"#).unwrap();
+        assert_eq!(Dataset::load(&root).unwrap().image_size, (720, 540));
+        std::fs::remove_file(root.join("camera_b.json")).unwrap();
+        assert_eq!(Dataset::load(&root).unwrap().image_size, (640, 480));
+    }
+
+    #[test]
+    fn models_fall_back_to_models_folder() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        std::fs::remove_dir_all(root.join("models_eval")).unwrap();
+        assert_eq!(Dataset::load(&root).unwrap().objects.len(), 4);
+    }
+
+    #[test]
+    fn missing_scene_gt_info_names_the_path() {
+        let dir = copy();
+        std::fs::remove_file(dir.path().join("synthA/test/000002/scene_gt_info.json")).unwrap();
+        let err = load_error(&dir);
+        assert!(matches!(err, Error::Io { .. }));
+        assert!(
+            err.to_string().contains("test/000002/scene_gt_info.json"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn short_cam_k_names_the_field() {
+        let dir = copy();
+        edit_json(
+            &dir.path().join("synthA/test/000001/scene_camera.json"),
+            |v| {
+                v["3"]["cam_K"].as_array_mut().unwrap().pop();
+            },
+        );
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains(
+                "scene_camera.json: image \"3\": field cam_K: expected 9 numbers, found 8"
+            ),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn short_rotation_names_image_and_instance() {
+        let dir = copy();
+        edit_json(&dir.path().join("synthA/test/000001/scene_gt.json"), |v| {
+            v["2"][1]["cam_R_m2c"].as_array_mut().unwrap().pop();
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains(
+                "test/000001/scene_gt.json: image \"2\", instance 1: field cam_R_m2c: \
+                 expected 9 numbers, found 8"
+            ),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn missing_field_reports_serde_position() {
+        let dir = copy();
+        edit_json(
+            &dir.path().join("synthA/test/000001/scene_camera.json"),
+            |v| {
+                v["1"].as_object_mut().unwrap().remove("cam_K");
+            },
+        );
+        let msg = load_error(&dir).to_string();
+        assert!(msg.contains("missing field `cam_K`"), "{msg}");
+    }
+
+    #[test]
+    fn gt_info_must_match_gt() {
+        let dir = copy();
+        let path = dir.path().join("synthA/test/000001/scene_gt_info.json");
+        edit_json(&path, |v| {
+            v["1"].as_array_mut().unwrap().pop();
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(msg.contains("scene_gt_info.json: image \"1\":"), "{msg}");
+
+        edit_json(&path, |v| {
+            v.as_object_mut().unwrap().remove("1");
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains("scene_gt_info.json: image \"1\" is missing"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn unknown_object_in_targets_is_named() {
+        let dir = copy();
+        edit_json(&dir.path().join("synthA/test_targets_bop19.json"), |v| {
+            v[5]["obj_id"] = serde_json::json!(99);
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains("test_targets_bop19.json: target 5 (scene_id")
+                && msg.contains("object 99 has no entry"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn unknown_image_in_targets_is_named() {
+        let dir = copy();
+        edit_json(&dir.path().join("synthA/test_targets_bop19.json"), |v| {
+            v[0]["im_id"] = serde_json::json!(42);
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(msg.contains("image 42 is not in"), "{msg}");
+    }
+
+    #[test]
+    fn custom_split_and_targets_file() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        std::fs::rename(root.join("test"), root.join("val")).unwrap();
+        std::fs::write(
+            root.join("val_targets.json"),
+            r#"[{"scene_id": 2, "im_id": 3, "obj_id": 1, "inst_count": 1, "extra": true}]"#,
+        )
+        .unwrap();
+        let opts = DatasetOptions {
+            split: "val".to_string(),
+            targets_file: "val_targets.json".to_string(),
+        };
+        let d = Dataset::load_with(&root, &opts).unwrap();
+        assert_eq!(d.name, "synthA");
+        assert_eq!(d.scenes.keys().copied().collect::<Vec<_>>(), [2]);
+        assert_eq!(d.depth_path(2, 3), root.join("val/000002/depth/000003.png"));
+        assert!(matches!(Dataset::load(&root), Err(Error::Io { .. })));
+    }
+}
