@@ -1,0 +1,459 @@
+//! From a dataset, a result file and a protocol to a report: selects the estimates each
+//! target considers, computes their errors image by image in parallel (rayon, on the caller's
+//! pool), then matches and scores at every threshold.
+
+use std::collections::{BTreeMap, HashMap};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
+use crate::dataset::{Dataset, Image};
+use crate::error::{Error, Result};
+use crate::matching::{EstimateErrors, valid_gts};
+use crate::math::{Pose, Pt3};
+use crate::pose_error::vsd::{GtView, TestImage, vsd};
+use crate::pose_error::{self, sphere_projections_overlap, spheres_overlap};
+use crate::protocol::{ErrorKind, NTop, Protocol};
+use crate::render::{DepthWindow, Renderer};
+use crate::report::{self, Report};
+use crate::results::Results;
+use crate::score::{ScoredImage, Scores, localization_scores};
+
+/// Told how much work there is and how much is done; the CLI draws a bar, the service stores
+/// a percentage.
+pub trait Progress: Sync {
+    fn start(&self, total_estimates: u64);
+    fn advance(&self, estimates: u64);
+}
+
+/// For callers that do not follow progress.
+pub struct NoProgress;
+
+impl Progress for NoProgress {
+    fn start(&self, _: u64) {}
+    fn advance(&self, _: u64) {}
+}
+
+/// One column of per-estimate errors: an error type, and for VSD one of its taus.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Column {
+    /// Index into `Protocol::errors`.
+    pub error: usize,
+    /// For VSD, the tau of this column.
+    pub tau: Option<f64>,
+    /// bop_toolkit's error signature, e.g. `error=vsd_ntop=-1_delta=15.000_tau=0.050`.
+    pub signature: String,
+}
+
+/// Everything an evaluation computed: the report, and the raw errors behind it.
+pub struct Evaluation {
+    pub report: Report,
+    pub columns: Vec<Column>,
+    pub errors: Vec<EstimateErrors>,
+    /// The target images as matched, to score the errors at other thresholds.
+    pub images: Vec<ScoredImage>,
+}
+
+impl Evaluation {
+    /// Full scores of one error column at one threshold of correctness (normalised as the
+    /// protocol normalises that error).
+    pub fn scores(
+        &self,
+        dataset: &Dataset,
+        protocol: &Protocol,
+        column: usize,
+        threshold: f64,
+    ) -> Scores {
+        let object_ids: Vec<u32> = dataset.objects.keys().copied().collect();
+        let scene_ids: Vec<u32> = dataset.scenes.keys().copied().collect();
+        let kind = &protocol.errors[self.columns[column].error].kind;
+        localization_scores(
+            &self.images,
+            &self.errors,
+            &object_ids,
+            &scene_ids,
+            protocol.n_top,
+            threshold,
+            |e, i| normalised_error(dataset, kind, e, e.errors[column][i]),
+        )
+        .scores
+    }
+}
+
+/// The error compared with thresholds: VSD as is, MSSD, ADD, ADI and AD as a fraction of the
+/// object's diameter, MSPD in pixels at 640 px image width.
+pub fn normalised_error(dataset: &Dataset, kind: &ErrorKind, e: &EstimateErrors, raw: f64) -> f64 {
+    match kind {
+        ErrorKind::Vsd(_) => raw,
+        ErrorKind::Mspd => 640.0 / dataset.image_size.0 as f64 * raw,
+        ErrorKind::Mssd | ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad => {
+            raw / dataset.objects[&e.obj_id].info.diameter
+        }
+    }
+}
+
+/// Evaluates `results` on `dataset` under `protocol`. Stops early with `Error::Cancelled`
+/// when `cancel` is set.
+pub fn evaluate(
+    dataset: &Dataset,
+    results: &Results,
+    protocol: &Protocol,
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+) -> Result<Evaluation> {
+    protocol.validate().map_err(Error::Parameters)?;
+    let columns = columns(protocol);
+    let selection = select_estimates(dataset, results, protocol.n_top);
+    progress.start(selection.evaluated as u64);
+
+    let objects = ObjectData::prepare(dataset, protocol);
+    let ctx = Context {
+        dataset,
+        results,
+        protocol,
+        columns: &columns,
+        objects: &objects,
+    };
+    let per_image: Vec<Vec<EstimateErrors>> = selection
+        .images
+        .par_iter()
+        .map(|work| {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let errs = ctx.image_errors(work)?;
+            progress.advance(errs.len() as u64);
+            Ok(errs)
+        })
+        .collect::<Result<_>>()?;
+
+    // Flatten, remembering where each (image, object)'s estimates went.
+    let mut errors = Vec::with_capacity(selection.evaluated);
+    let mut scored = Vec::with_capacity(selection.images.len());
+    for (work, errs) in selection.images.iter().zip(per_image) {
+        let image = &dataset.scenes[&work.scene_id].images[&work.im_id];
+        let valid = valid_gts(image, &work.targets, protocol.visib_gt_min);
+        let mut estimates: Vec<(u32, Vec<usize>)> = work
+            .targets
+            .iter()
+            .map(|&(obj, _)| (obj, Vec::new()))
+            .collect();
+        for e in errs {
+            if let Some(slot) = estimates.iter_mut().find(|(o, _)| *o == e.obj_id) {
+                slot.1.push(errors.len());
+            }
+            errors.push(e);
+        }
+        scored.push(ScoredImage {
+            scene_id: work.scene_id,
+            im_id: work.im_id,
+            gts: image
+                .gt
+                .iter()
+                .zip(valid)
+                .map(|(g, v)| (g.obj_id, g.visib_fract, v))
+                .collect(),
+            estimates,
+        });
+    }
+
+    let report = report::build(
+        dataset, results, protocol, &columns, &scored, &errors, &selection,
+    );
+    Ok(Evaluation {
+        report,
+        columns,
+        errors,
+        images: scored,
+    })
+}
+
+/// The error columns a protocol computes, in a fixed order.
+pub fn columns(protocol: &Protocol) -> Vec<Column> {
+    let n_top = protocol.n_top.as_i64();
+    let mut cols = Vec::new();
+    for (i, spec) in protocol.errors.iter().enumerate() {
+        match &spec.kind {
+            ErrorKind::Vsd(p) => {
+                for &tau in &p.taus {
+                    cols.push(Column {
+                        error: i,
+                        tau: Some(tau),
+                        signature: format!(
+                            "error=vsd_ntop={n_top}_delta={:.3}_tau={tau:.3}",
+                            p.delta
+                        ),
+                    });
+                }
+            }
+            kind => cols.push(Column {
+                error: i,
+                tau: None,
+                signature: format!("error={}_ntop={n_top}", kind.name()),
+            }),
+        }
+    }
+    cols
+}
+
+/// The estimates each target considers, grouped by image.
+pub(crate) struct Selection {
+    pub images: Vec<ImageWork>,
+    /// Estimates evaluated (the first n_top of each target).
+    pub evaluated: usize,
+    /// Estimates for images or objects that are not test targets.
+    pub ignored: usize,
+    /// Targets with no estimate at all.
+    pub targets_without_estimate: usize,
+}
+
+pub(crate) struct ImageWork {
+    pub scene_id: u32,
+    pub im_id: u32,
+    /// (object, inst_count) of the image's targets, in the targets file's order.
+    pub targets: Vec<(u32, u32)>,
+    /// Per target object: (index into the results, est_id) in decreasing score order.
+    pub estimates: Vec<(u32, Vec<(usize, u32)>)>,
+}
+
+fn select_estimates(dataset: &Dataset, results: &Results, n_top: NTop) -> Selection {
+    // Rows of each (scene, image, object) in file order; est_id is the position.
+    let mut rows: HashMap<(u32, u32, u32), Vec<usize>> = HashMap::new();
+    for (i, e) in results.estimates.iter().enumerate() {
+        rows.entry((e.scene_id, e.im_id, e.obj_id))
+            .or_default()
+            .push(i);
+    }
+    let mut images: BTreeMap<(u32, u32), ImageWork> = BTreeMap::new();
+    let (mut evaluated, mut used, mut without) = (0, 0, 0);
+    for t in &dataset.targets {
+        let work = images
+            .entry((t.scene_id, t.im_id))
+            .or_insert_with(|| ImageWork {
+                scene_id: t.scene_id,
+                im_id: t.im_id,
+                targets: Vec::new(),
+                estimates: Vec::new(),
+            });
+        if work.targets.iter().any(|(o, _)| *o == t.obj_id) {
+            continue; // A duplicated target line adds nothing.
+        }
+        work.targets.push((t.obj_id, t.inst_count));
+        let Some(idx) = rows.get(&(t.scene_id, t.im_id, t.obj_id)) else {
+            without += 1;
+            continue;
+        };
+        used += idx.len();
+        let mut sorted: Vec<(usize, u32)> = idx
+            .iter()
+            .enumerate()
+            .map(|(est_id, &i)| (i, est_id as u32))
+            .collect();
+        // Stable: ties keep file order, as Python's sorted(reverse=True) does.
+        sorted.sort_by(|a, b| {
+            let (sa, sb) = (results.estimates[a.0].score, results.estimates[b.0].score);
+            sb.partial_cmp(&sa).unwrap_or(std::cmp::Ordering::Equal)
+        });
+        let keep = match n_top {
+            NTop::Top(n) => n as usize,
+            NTop::InstCount => t.inst_count as usize,
+            NTop::All => usize::MAX,
+        };
+        sorted.truncate(keep);
+        evaluated += sorted.len();
+        work.estimates.push((t.obj_id, sorted));
+    }
+    Selection {
+        images: images.into_values().collect(),
+        evaluated,
+        ignored: results.estimates.len() - used,
+        targets_without_estimate: without,
+    }
+}
+
+/// What every error needs of an object, computed once per evaluation.
+struct ObjectData {
+    bbox_corners: HashMap<u32, [Pt3; 8]>,
+    symmetries: HashMap<u32, Vec<Pose>>,
+}
+
+impl ObjectData {
+    fn prepare(dataset: &Dataset, protocol: &Protocol) -> Self {
+        let needs_syms = protocol
+            .errors
+            .iter()
+            .any(|e| matches!(e.kind, ErrorKind::Mssd | ErrorKind::Mspd));
+        ObjectData {
+            bbox_corners: dataset
+                .objects
+                .iter()
+                .map(|(&id, o)| (id, o.mesh.bbox_corners()))
+                .collect(),
+            symmetries: if needs_syms {
+                dataset
+                    .objects
+                    .iter()
+                    .map(|(&id, o)| {
+                        let syms = pose_error::symmetry_transformations(
+                            &o.info,
+                            protocol.max_sym_disc_step,
+                        );
+                        (id, syms)
+                    })
+                    .collect()
+            } else {
+                HashMap::new()
+            },
+        }
+    }
+}
+
+struct Context<'a> {
+    dataset: &'a Dataset,
+    results: &'a Results,
+    protocol: &'a Protocol,
+    columns: &'a [Column],
+    objects: &'a ObjectData,
+}
+
+impl Context<'_> {
+    fn image_errors(&self, work: &ImageWork) -> Result<Vec<EstimateErrors>> {
+        let image = &self.dataset.scenes[&work.scene_id].images[&work.im_id];
+        let test = match self.protocol.vsd() {
+            Some(_) if !work.estimates.iter().all(|(_, e)| e.is_empty()) => {
+                let depth = self.dataset.load_depth(work.scene_id, work.im_id)?;
+                Some(TestImage::new(&depth, &image.camera))
+            }
+            _ => None,
+        };
+        let mut renderer = Renderer::new();
+        let mut pts_scratch = Vec::new();
+        let mut px_scratch = Vec::new();
+        let mut gt_views: HashMap<usize, GtView> = HashMap::new();
+        let mut out = Vec::new();
+
+        for (obj_id, ests) in &work.estimates {
+            let object = &self.dataset.objects[obj_id];
+            let diameter = object.info.diameter;
+            let gt_ids: Vec<u32> = image
+                .gt
+                .iter()
+                .enumerate()
+                .filter(|(_, g)| g.obj_id == *obj_id)
+                .map(|(i, _)| i as u32)
+                .collect();
+            for &(idx, est_id) in ests {
+                let est = &self.results.estimates[idx];
+                let mut errors = vec![vec![0.0; gt_ids.len()]; self.columns.len()];
+                let mut est_render: Option<DepthWindow> = None;
+                for (gi, &gt_id) in gt_ids.iter().enumerate() {
+                    let gt = &image.gt[gt_id as usize];
+                    let mut c = 0;
+                    for spec in &self.protocol.errors {
+                        match &spec.kind {
+                            ErrorKind::Vsd(params) => {
+                                let n = params.taus.len();
+                                let mut vals = vec![1.0; n];
+                                let test = test.as_ref().expect("depth loaded for VSD");
+                                if sphere_projections_overlap(
+                                    0.5 * diameter,
+                                    &est.pose.t,
+                                    &gt.pose.t,
+                                ) {
+                                    let est_depth = est_render.get_or_insert_with(|| {
+                                        self.render(&mut renderer, *obj_id, &est.pose, image, test)
+                                    });
+                                    let view =
+                                        gt_views.entry(gt_id as usize).or_insert_with(|| {
+                                            let r = self.render(
+                                                &mut renderer,
+                                                *obj_id,
+                                                &gt.pose,
+                                                image,
+                                                test,
+                                            );
+                                            GtView::new(test, r, params)
+                                        });
+                                    vsd(test, view, est_depth, diameter, params, &mut vals);
+                                }
+                                for v in vals {
+                                    errors[c][gi] = v;
+                                    c += 1;
+                                }
+                                continue;
+                            }
+                            ErrorKind::Mssd => {
+                                errors[c][gi] =
+                                    if spheres_overlap(&est.pose.t, &gt.pose.t, diameter) {
+                                        pose_error::mssd(
+                                            &est.pose,
+                                            &gt.pose,
+                                            &object.mesh.vertices,
+                                            &self.objects.symmetries[obj_id],
+                                            &mut pts_scratch,
+                                        )
+                                    } else {
+                                        f64::INFINITY
+                                    };
+                            }
+                            ErrorKind::Mspd => {
+                                errors[c][gi] = pose_error::mspd(
+                                    &est.pose,
+                                    &gt.pose,
+                                    &image.camera,
+                                    &object.mesh.vertices,
+                                    &self.objects.symmetries[obj_id],
+                                    &mut px_scratch,
+                                );
+                            }
+                            kind @ (ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad) => {
+                                errors[c][gi] =
+                                    if !spheres_overlap(&est.pose.t, &gt.pose.t, diameter) {
+                                        f64::INFINITY
+                                    } else if matches!(kind, ErrorKind::Adi)
+                                        || (matches!(kind, ErrorKind::Ad)
+                                            && object.info.is_symmetric())
+                                    {
+                                        pose_error::adi(&est.pose, &gt.pose, &object.mesh.vertices)
+                                    } else {
+                                        pose_error::add(&est.pose, &gt.pose, &object.mesh.vertices)
+                                    };
+                            }
+                        }
+                        c += 1;
+                    }
+                }
+                out.push(EstimateErrors {
+                    scene_id: work.scene_id,
+                    im_id: work.im_id,
+                    obj_id: *obj_id,
+                    est_id,
+                    score: est.score,
+                    gt_ids: gt_ids.clone(),
+                    errors,
+                });
+            }
+            // GT renders are per object instance; free them once the object is done.
+            gt_views.clear();
+        }
+        Ok(out)
+    }
+
+    fn render(
+        &self,
+        renderer: &mut Renderer,
+        obj_id: u32,
+        pose: &Pose,
+        image: &Image,
+        test: &TestImage,
+    ) -> DepthWindow {
+        renderer.render(
+            &self.dataset.objects[&obj_id].mesh,
+            &self.objects.bbox_corners[&obj_id],
+            pose,
+            &image.camera,
+            test.rays.width,
+            test.rays.height,
+        )
+    }
+}

@@ -1,0 +1,277 @@
+//! The evaluation protocols poseboard names: `eccv18`, the paper's (VSD only, one estimate per
+//! target, targets at least 10 % visible), and `bop19`, the BOP Challenge's average recall over
+//! VSD, MSSD and MSPD. Every parameter can be overridden; the report records what was used.
+
+use serde::{Deserialize, Serialize};
+
+use crate::pose_error::vsd::VsdParams;
+use crate::visibility::VisibMode;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProtocolName {
+    Eccv18,
+    Bop19,
+}
+
+impl ProtocolName {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProtocolName::Eccv18 => "eccv18",
+            ProtocolName::Bop19 => "bop19",
+        }
+    }
+}
+
+impl std::str::FromStr for ProtocolName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "eccv18" => Ok(ProtocolName::Eccv18),
+            "bop19" => Ok(ProtocolName::Bop19),
+            other => Err(format!("unknown protocol `{other}` (eccv18 or bop19)")),
+        }
+    }
+}
+
+/// Which estimates count per target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NTop {
+    /// The `n` highest-scored estimates (the paper: 1).
+    Top(u32),
+    /// As many as the target has instances (bop_toolkit's `-1`).
+    InstCount,
+    /// Every estimate (bop_toolkit's `0`).
+    All,
+}
+
+impl NTop {
+    /// bop_toolkit's integer encoding, used in reports and flags.
+    pub fn as_i64(self) -> i64 {
+        match self {
+            NTop::Top(n) => n as i64,
+            NTop::InstCount => -1,
+            NTop::All => 0,
+        }
+    }
+
+    pub fn from_i64(n: i64) -> Result<Self, String> {
+        match n {
+            -1 => Ok(NTop::InstCount),
+            0 => Ok(NTop::All),
+            n if n > 0 && n <= u32::MAX as i64 => Ok(NTop::Top(n as u32)),
+            n => Err(format!("n_top must be -1, 0 or positive, not {n}")),
+        }
+    }
+}
+
+/// A pose error to compute, with the thresholds of correctness its recalls are reported at.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorSpec {
+    pub kind: ErrorKind,
+    /// Thresholds on the normalised error: VSD as is, MSSD/ADD/ADI/AD as a fraction of the
+    /// diameter, MSPD in pixels at 640 px image width.
+    pub thresholds: Vec<f64>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ErrorKind {
+    Vsd(VsdParams),
+    Mssd,
+    Mspd,
+    Add,
+    Adi,
+    /// ADI for objects with declared symmetries, ADD for the others (bop_toolkit's `ad`).
+    Ad,
+}
+
+impl ErrorKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            ErrorKind::Vsd(_) => "vsd",
+            ErrorKind::Mssd => "mssd",
+            ErrorKind::Mspd => "mspd",
+            ErrorKind::Add => "add",
+            ErrorKind::Adi => "adi",
+            ErrorKind::Ad => "ad",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Protocol {
+    pub name: ProtocolName,
+    pub n_top: NTop,
+    /// Ground-truth instances less visible than this are not expected to be found; negative:
+    /// the `inst_count` most visible instances of each target are (bop_toolkit's `-1`).
+    pub visib_gt_min: f64,
+    pub max_sym_disc_step: f64,
+    pub errors: Vec<ErrorSpec>,
+    /// The VSD (tau index, threshold) whose recall is the headline score of `eccv18`.
+    pub main_tau: f64,
+    pub main_theta: f64,
+}
+
+/// The misalignment tolerances of the BOP'19 VSD, and its thresholds of correctness:
+/// 0.05, 0.10, ..., 0.50, computed like numpy's `arange(0.05, 0.51, 0.05)` (start + i * step),
+/// whose floating-point values bop_toolkit compares against.
+pub fn bop19_fractions() -> Vec<f64> {
+    (0..10).map(|i| 0.05 + i as f64 * 0.05).collect()
+}
+
+/// MSPD thresholds of BOP'19: 5, 10, ..., 50 px.
+pub fn bop19_mspd_thresholds() -> Vec<f64> {
+    (1..=10).map(|i| 5.0 * i as f64).collect()
+}
+
+/// Thresholds of correctness for the recall-vs-theta curves of the paper's Fig. 5.
+pub fn theta_curve() -> Vec<f64> {
+    (0..=20).map(|i| i as f64 * 0.05).collect()
+}
+
+/// The tau of the paper's second curve (Fig. 5 plots tau = 20 and 80 mm).
+pub const ECCV18_CURVE_TAU: f64 = 80.0;
+
+impl Protocol {
+    /// The ECCV'18 paper: VSD with tau = 20 mm, delta = 15 mm, theta = 0.3, one estimate per
+    /// target, targets visible at least 10 %, and the paper's `bop18` visibility.
+    pub fn eccv18() -> Self {
+        let mut p = Protocol {
+            name: ProtocolName::Eccv18,
+            n_top: NTop::Top(1),
+            visib_gt_min: 0.1,
+            max_sym_disc_step: 0.01,
+            errors: Vec::new(),
+            main_tau: 20.0,
+            main_theta: 0.3,
+        };
+        p.set_vsd(15.0, vec![20.0], false, VisibMode::Bop18, vec![0.3]);
+        p
+    }
+
+    /// bop_toolkit's `eval_bop19_pose.py` defaults.
+    pub fn bop19() -> Self {
+        let fractions = bop19_fractions();
+        let mut p = Protocol {
+            name: ProtocolName::Bop19,
+            n_top: NTop::InstCount,
+            visib_gt_min: -1.0,
+            max_sym_disc_step: 0.01,
+            errors: Vec::new(),
+            main_tau: fractions[5],
+            main_theta: fractions[5],
+        };
+        p.set_vsd(
+            15.0,
+            fractions.clone(),
+            true,
+            VisibMode::Bop19,
+            fractions.clone(),
+        );
+        p.errors.push(ErrorSpec {
+            kind: ErrorKind::Mssd,
+            thresholds: fractions,
+        });
+        p.errors.push(ErrorSpec {
+            kind: ErrorKind::Mspd,
+            thresholds: bop19_mspd_thresholds(),
+        });
+        p
+    }
+
+    pub fn named(name: ProtocolName) -> Self {
+        match name {
+            ProtocolName::Eccv18 => Self::eccv18(),
+            ProtocolName::Bop19 => Self::bop19(),
+        }
+    }
+
+    /// Replaces the VSD settings. For `eccv18` the curve tau and the theta curve are added to
+    /// the given taus and thresholds so that Fig. 5 comes from the same renders.
+    pub fn set_vsd(
+        &mut self,
+        delta: f64,
+        taus: Vec<f64>,
+        normalized_by_diameter: bool,
+        visib_mode: VisibMode,
+        thresholds: Vec<f64>,
+    ) {
+        let (mut taus, mut thresholds) = (taus, thresholds);
+        if let Some(&first) = taus.first() {
+            self.main_tau = first;
+        }
+        if let Some(&first) = thresholds.first() {
+            self.main_theta = first;
+        }
+        if self.name == ProtocolName::Eccv18 {
+            if !normalized_by_diameter && !taus.contains(&ECCV18_CURVE_TAU) {
+                taus.push(ECCV18_CURVE_TAU);
+            }
+            for th in theta_curve() {
+                if !thresholds.contains(&th) {
+                    thresholds.push(th);
+                }
+            }
+        }
+        let spec = ErrorSpec {
+            kind: ErrorKind::Vsd(VsdParams {
+                delta,
+                taus,
+                normalized_by_diameter,
+                visib_mode,
+            }),
+            thresholds,
+        };
+        match self
+            .errors
+            .iter_mut()
+            .find(|e| matches!(e.kind, ErrorKind::Vsd(_)))
+        {
+            Some(e) => *e = spec,
+            None => self.errors.insert(0, spec),
+        }
+    }
+
+    pub fn vsd(&self) -> Option<(&VsdParams, &[f64])> {
+        self.errors.iter().find_map(|e| match &e.kind {
+            ErrorKind::Vsd(p) => Some((p, e.thresholds.as_slice())),
+            _ => None,
+        })
+    }
+
+    /// Checks the parameters once, so the pipeline can trust them.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.max_sym_disc_step > 0.0 && self.max_sym_disc_step <= 1.0) {
+            return Err(format!(
+                "max_sym_disc_step must be in (0, 1], not {}",
+                self.max_sym_disc_step
+            ));
+        }
+        if !self.visib_gt_min.is_finite() || self.visib_gt_min > 1.0 {
+            return Err(format!(
+                "visib_gt_min must be at most 1, not {}",
+                self.visib_gt_min
+            ));
+        }
+        if self.errors.is_empty() {
+            return Err("no pose error selected".into());
+        }
+        for e in &self.errors {
+            if e.thresholds.is_empty() || e.thresholds.iter().any(|t| !t.is_finite() || *t < 0.0) {
+                return Err(format!(
+                    "{}: thresholds must be finite, non-negative and not empty",
+                    e.kind.name()
+                ));
+            }
+            if let ErrorKind::Vsd(p) = &e.kind {
+                if p.taus.is_empty() || p.taus.iter().any(|t| !t.is_finite() || *t <= 0.0) {
+                    return Err("vsd: taus must be positive and not empty".into());
+                }
+                if !(p.delta.is_finite() && p.delta >= 0.0) {
+                    return Err(format!("vsd: delta must be non-negative, not {}", p.delta));
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,379 @@
+//! The report of one evaluation: every number poseboard shows, with bop_toolkit's key names
+//! where the quantity is the same (`recall`, `obj_recalls`, `bop19_average_recall`, ...), and
+//! the parameters that produced it.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::dataset::Dataset;
+use crate::matching::EstimateErrors;
+use crate::pipeline::{Column, Selection, normalised_error};
+use crate::protocol::{ErrorKind, Protocol, ProtocolName};
+use crate::results::Results;
+use crate::score::{Scored, ScoredImage, Scores, localization_scores, mean};
+
+/// The version of the evaluator, stored with every score so that scores from different
+/// evaluator versions are never mixed silently.
+pub const EVALUATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub evaluator_version: String,
+    pub dataset: String,
+    pub protocol: ProtocolName,
+    pub parameters: Parameters,
+    /// Rows of the result file.
+    pub estimates_count: usize,
+    /// Estimates whose errors were computed (the first n_top of each target).
+    pub estimates_evaluated: usize,
+    /// Estimates for images or objects that are not test targets (ignored, as bop_toolkit does).
+    pub estimates_ignored: usize,
+    pub targets_without_estimate: usize,
+    pub warnings: Vec<String>,
+
+    /// ECCV'18: recall and its breakdowns at the main tau and theta.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub localization: Option<Scores>,
+    /// ECCV'18: the reported time of each image shared among its targets, averaged over targets.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub average_time_per_target: Option<f64>,
+    /// ECCV'18 Fig. 5 left: recall against the threshold of correctness theta, one curve per tau.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub recall_vs_theta: Vec<ThetaCurve>,
+    /// ECCV'18 Fig. 5 right: recall of ground-truth instances by their visible fraction.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub recall_vs_visib: Vec<VisibBin>,
+
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop19_average_recall: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop19_average_recall_vsd: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop19_average_recall_mssd: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop19_average_recall_mspd: Option<f64>,
+    /// BOP'19: mean over images of the time given for the image; absent when any time is negative.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop19_average_time_per_image: Option<f64>,
+    /// BOP'19: per object (and per scene), the average recall over the three errors.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub obj_average_recalls: BTreeMap<u32, f64>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub scene_average_recalls: BTreeMap<u32, f64>,
+
+    /// Mean recall over the thresholds of each error type (its average recall).
+    pub average_recalls: BTreeMap<String, f64>,
+    /// `[error signature][score signature]` = recall, with bop_toolkit's signatures
+    /// (`error=vsd_ntop=-1_delta=15.000_tau=0.050`, `th=0.050_min-visib=-1.000`).
+    pub per_error_recall_per_threshold: BTreeMap<String, BTreeMap<String, f64>>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Parameters {
+    pub n_top: i64,
+    pub visib_gt_min: f64,
+    pub max_sym_disc_step: f64,
+    pub main_tau: f64,
+    pub main_theta: f64,
+    pub errors: Vec<ErrorParameters>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorParameters {
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub thresholds: Vec<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vsd_delta: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vsd_taus: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vsd_normalized_by_diameter: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub visib_mode: Option<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ThetaCurve {
+    pub tau: f64,
+    /// (theta, recall) in increasing theta.
+    pub points: Vec<(f64, f64)>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VisibBin {
+    pub visib_from: f64,
+    pub visib_to: f64,
+    pub instances: usize,
+    pub matched: usize,
+    pub recall: f64,
+}
+
+pub fn parameters(protocol: &Protocol) -> Parameters {
+    Parameters {
+        n_top: protocol.n_top.as_i64(),
+        visib_gt_min: protocol.visib_gt_min,
+        max_sym_disc_step: protocol.max_sym_disc_step,
+        main_tau: protocol.main_tau,
+        main_theta: protocol.main_theta,
+        errors: protocol
+            .errors
+            .iter()
+            .map(|e| {
+                let vsd = match &e.kind {
+                    ErrorKind::Vsd(p) => Some(p),
+                    _ => None,
+                };
+                ErrorParameters {
+                    kind: e.kind.name().to_string(),
+                    thresholds: e.thresholds.clone(),
+                    vsd_delta: vsd.map(|p| p.delta),
+                    vsd_taus: vsd.map(|p| p.taus.clone()),
+                    vsd_normalized_by_diameter: vsd.map(|p| p.normalized_by_diameter),
+                    visib_mode: vsd.map(|p| p.visib_mode.name().to_string()),
+                }
+            })
+            .collect(),
+    }
+}
+
+/// bop_toolkit's score signature.
+pub fn score_signature(threshold: f64, visib_gt_min: f64) -> String {
+    format!("th={threshold:.3}_min-visib={visib_gt_min:.3}")
+}
+
+pub(crate) fn build(
+    dataset: &Dataset,
+    results: &Results,
+    protocol: &Protocol,
+    columns: &[Column],
+    images: &[ScoredImage],
+    errors: &[EstimateErrors],
+    selection: &Selection,
+) -> Report {
+    let object_ids: Vec<u32> = dataset.objects.keys().copied().collect();
+    let scene_ids: Vec<u32> = dataset.scenes.keys().copied().collect();
+
+    // Scores for every (column, threshold), in protocol order.
+    let mut per_column: Vec<Vec<(f64, Scored)>> = Vec::with_capacity(columns.len());
+    for (ci, col) in columns.iter().enumerate() {
+        let spec = &protocol.errors[col.error];
+        let scored = spec
+            .thresholds
+            .iter()
+            .map(|&th| {
+                let s = localization_scores(
+                    images,
+                    errors,
+                    &object_ids,
+                    &scene_ids,
+                    protocol.n_top,
+                    th,
+                    |e, i| normalised_error(dataset, &spec.kind, e, e.errors[ci][i]),
+                );
+                (th, s)
+            })
+            .collect();
+        per_column.push(scored);
+    }
+
+    let mut per_error_recall_per_threshold = BTreeMap::new();
+    let mut recalls_by_error: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    for (col, scored) in columns.iter().zip(&per_column) {
+        let name = protocol.errors[col.error].kind.name();
+        let entry: &mut BTreeMap<String, f64> = per_error_recall_per_threshold
+            .entry(col.signature.clone())
+            .or_default();
+        for (th, s) in scored {
+            entry.insert(score_signature(*th, protocol.visib_gt_min), s.scores.recall);
+            recalls_by_error
+                .entry(name)
+                .or_default()
+                .push(s.scores.recall);
+        }
+    }
+    let average_recalls: BTreeMap<String, f64> = recalls_by_error
+        .iter()
+        .map(|(k, v)| (k.to_string(), mean(v)))
+        .collect();
+
+    let mut report = Report {
+        evaluator_version: EVALUATOR_VERSION.to_string(),
+        dataset: dataset.name.clone(),
+        protocol: protocol.name,
+        parameters: parameters(protocol),
+        estimates_count: results.estimates.len(),
+        estimates_evaluated: selection.evaluated,
+        estimates_ignored: selection.ignored,
+        targets_without_estimate: selection.targets_without_estimate,
+        warnings: warnings(dataset, results, selection),
+        localization: None,
+        average_time_per_target: None,
+        recall_vs_theta: Vec::new(),
+        recall_vs_visib: Vec::new(),
+        bop19_average_recall: None,
+        bop19_average_recall_vsd: None,
+        bop19_average_recall_mssd: None,
+        bop19_average_recall_mspd: None,
+        bop19_average_time_per_image: None,
+        obj_average_recalls: BTreeMap::new(),
+        scene_average_recalls: BTreeMap::new(),
+        average_recalls,
+        per_error_recall_per_threshold,
+    };
+
+    match protocol.name {
+        ProtocolName::Eccv18 => {
+            let vsd_cols: Vec<usize> = (0..columns.len())
+                .filter(|&c| columns[c].tau.is_some())
+                .collect();
+            for &c in &vsd_cols {
+                let mut points: Vec<(f64, f64)> = per_column[c]
+                    .iter()
+                    .map(|(th, s)| (*th, s.scores.recall))
+                    .collect();
+                points.sort_by(|a, b| a.0.total_cmp(&b.0));
+                points.dedup_by(|a, b| a.0 == b.0);
+                report.recall_vs_theta.push(ThetaCurve {
+                    tau: columns[c].tau.unwrap_or_default(),
+                    points,
+                });
+            }
+            let main = vsd_cols
+                .iter()
+                .find(|&&c| columns[c].tau == Some(protocol.main_tau))
+                .and_then(|&c| {
+                    per_column[c]
+                        .iter()
+                        .find(|(th, _)| *th == protocol.main_theta)
+                });
+            if let Some((_, scored)) = main {
+                report.localization = Some(scored.scores.clone());
+                report.recall_vs_visib = visib_bins(images, &scored.matched);
+            }
+            report.average_time_per_target = time_per_target(results, images);
+        }
+        ProtocolName::Bop19 => {
+            let avg = |name: &str| report.average_recalls.get(name).copied();
+            report.bop19_average_recall_vsd = avg("vsd");
+            report.bop19_average_recall_mssd = avg("mssd");
+            report.bop19_average_recall_mspd = avg("mspd");
+            if let (Some(v), Some(s), Some(p)) = (
+                report.bop19_average_recall_vsd,
+                report.bop19_average_recall_mssd,
+                report.bop19_average_recall_mspd,
+            ) {
+                report.bop19_average_recall = Some(mean(&[v, s, p]));
+            }
+            report.bop19_average_time_per_image = results.average_time_per_image();
+            report.obj_average_recalls =
+                grouped_average_recall(protocol, columns, &per_column, |s| &s.obj_recalls);
+            report.scene_average_recalls =
+                grouped_average_recall(protocol, columns, &per_column, |s| &s.scene_recalls);
+        }
+    }
+    report
+}
+
+/// Per object (or scene): the mean over error types of the mean recall over that type's
+/// thresholds, the per-object breakdown of the BOP'19 average recall.
+fn grouped_average_recall(
+    protocol: &Protocol,
+    columns: &[Column],
+    per_column: &[Vec<(f64, Scored)>],
+    group: impl Fn(&Scores) -> &BTreeMap<u32, f64>,
+) -> BTreeMap<u32, f64> {
+    let mut per_error: Vec<BTreeMap<u32, Vec<f64>>> = vec![BTreeMap::new(); protocol.errors.len()];
+    for (col, scored) in columns.iter().zip(per_column) {
+        for (_, s) in scored {
+            for (&id, &r) in group(&s.scores) {
+                per_error[col.error].entry(id).or_default().push(r);
+            }
+        }
+    }
+    let mut out: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
+    for errs in per_error {
+        for (id, recalls) in errs {
+            out.entry(id).or_default().push(mean(&recalls));
+        }
+    }
+    out.into_iter().map(|(id, v)| (id, mean(&v))).collect()
+}
+
+fn visib_bins(images: &[ScoredImage], matched: &[Vec<bool>]) -> Vec<VisibBin> {
+    let mut counts = [(0usize, 0usize); 10];
+    for (im, m) in images.iter().zip(matched) {
+        for (g, &hit) in im.gts.iter().zip(m) {
+            if !g.2 {
+                continue;
+            }
+            let bin = ((g.1 * 10.0).floor().max(0.0) as usize).min(9);
+            counts[bin].0 += 1;
+            counts[bin].1 += hit as usize;
+        }
+    }
+    counts
+        .iter()
+        .enumerate()
+        .map(|(i, &(n, hit))| VisibBin {
+            visib_from: i as f64 / 10.0,
+            visib_to: (i + 1) as f64 / 10.0,
+            instances: n,
+            matched: hit,
+            recall: crate::score::recall(hit, n),
+        })
+        .collect()
+}
+
+fn time_per_target(results: &Results, images: &[ScoredImage]) -> Option<f64> {
+    if !results.times_available {
+        return None;
+    }
+    let (mut time, mut targets) = (0.0, 0usize);
+    for im in images {
+        if let Some(t) = results.image_times.get(&(im.scene_id, im.im_id)) {
+            time += t;
+            targets += im.estimates.len();
+        }
+    }
+    (targets > 0).then(|| time / targets as f64)
+}
+
+fn warnings(dataset: &Dataset, results: &Results, selection: &Selection) -> Vec<String> {
+    let mut w = Vec::new();
+    if selection.ignored > 0 {
+        w.push(format!(
+            "{} of {} estimates are for images or objects that are not test targets of {}; they were ignored, as bop_toolkit does",
+            selection.ignored,
+            results.estimates.len(),
+            dataset.name
+        ));
+    }
+    if selection.evaluated == 0 {
+        w.push("no estimate is for a test target: every score is 0".to_string());
+    } else if selection.targets_without_estimate > 0 {
+        w.push(format!(
+            "{} of {} targets have no estimate; they count as misses",
+            selection.targets_without_estimate,
+            dataset.targets.len()
+        ));
+    }
+    if !results.times_available && !results.estimates.is_empty() {
+        w.push(
+            "some estimates give a negative time (not measured): no average time is reported"
+                .to_string(),
+        );
+    }
+    w
+}
+
+impl Report {
+    /// The headline number of the protocol: recall (eccv18) or average recall (bop19).
+    pub fn headline(&self) -> f64 {
+        match self.protocol {
+            ProtocolName::Eccv18 => self.localization.as_ref().map_or(0.0, |s| s.recall),
+            ProtocolName::Bop19 => self.bop19_average_recall.unwrap_or(0.0),
+        }
+    }
+}

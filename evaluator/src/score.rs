@@ -1,0 +1,215 @@
+//! Recall of the 6D localisation task (bop_toolkit's `score.calc_localization_scores`): the
+//! fraction of expected instances matched by a correct estimate, overall, per object and per
+//! scene, and the means the reference reports (with numpy's summation order, so that means
+//! agree to the last bit).
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::matching::{EstimateErrors, match_image_object};
+use crate::protocol::NTop;
+
+/// A target image ready for scoring.
+#[derive(Clone, Debug)]
+pub struct ScoredImage {
+    pub scene_id: u32,
+    pub im_id: u32,
+    /// Per gt id: object, visible fraction, and whether it is expected to be found.
+    pub gts: Vec<(u32, f64, bool)>,
+    /// Per target object of the image, the indices (into the errors slice) of its evaluated
+    /// estimates in decreasing score order.
+    pub estimates: Vec<(u32, Vec<usize>)>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    pub recall: f64,
+    pub obj_recalls: BTreeMap<u32, f64>,
+    pub mean_obj_recall: f64,
+    pub scene_recalls: BTreeMap<u32, f64>,
+    pub mean_scene_recall: f64,
+    pub gt_count: usize,
+    pub targets_count: usize,
+    pub tp_count: usize,
+}
+
+/// Everything matching produced for one threshold: the scores and, per image and gt id,
+/// whether the instance was matched (for the recall-vs-visibility curve).
+pub struct Scored {
+    pub scores: Scores,
+    pub matched: Vec<Vec<bool>>,
+}
+
+/// Scores at one threshold. `object_ids` and `scene_ids` are every object and scene of the
+/// dataset: like the reference, one without targets reports recall 0 and counts in the means.
+pub fn localization_scores(
+    images: &[ScoredImage],
+    errors: &[EstimateErrors],
+    object_ids: &[u32],
+    scene_ids: &[u32],
+    n_top: NTop,
+    threshold: f64,
+    error: impl Fn(&EstimateErrors, usize) -> f64 + Copy,
+) -> Scored {
+    let mut obj_targets: BTreeMap<u32, usize> = object_ids.iter().map(|&o| (o, 0)).collect();
+    let mut obj_tps = obj_targets.clone();
+    let mut scene_targets: BTreeMap<u32, usize> = scene_ids.iter().map(|&s| (s, 0)).collect();
+    let mut scene_tps = scene_targets.clone();
+    let (mut targets, mut tps, mut gt_count) = (0usize, 0usize, 0usize);
+    let mut all_matched = Vec::with_capacity(images.len());
+
+    for im in images {
+        gt_count += im.gts.len();
+        let valid: Vec<bool> = im.gts.iter().map(|g| g.2).collect();
+        let mut matched = vec![false; im.gts.len()];
+        for (_, ests) in &im.estimates {
+            match_image_object(
+                ests.iter().map(|&i| &errors[i]),
+                n_top,
+                threshold,
+                &valid,
+                &mut matched,
+                error,
+            );
+        }
+        // Targets: per object of the image, its valid instances, at most n_top of them.
+        let mut per_obj: BTreeMap<u32, usize> = BTreeMap::new();
+        for g in im.gts.iter().filter(|g| g.2) {
+            *per_obj.entry(g.0).or_default() += 1;
+        }
+        for (obj, count) in per_obj {
+            let count = match n_top {
+                NTop::Top(n) => count.min(n as usize),
+                NTop::InstCount | NTop::All => count,
+            };
+            targets += count;
+            *obj_targets.entry(obj).or_default() += count;
+            *scene_targets.entry(im.scene_id).or_default() += count;
+        }
+        for (g, _) in im.gts.iter().zip(&matched).filter(|(g, m)| g.2 && **m) {
+            tps += 1;
+            *obj_tps.entry(g.0).or_default() += 1;
+            *scene_tps.entry(im.scene_id).or_default() += 1;
+        }
+        all_matched.push(matched);
+    }
+
+    let obj_recalls: BTreeMap<u32, f64> = obj_targets
+        .iter()
+        .map(|(&o, &n)| (o, recall(obj_tps[&o], n)))
+        .collect();
+    let scene_recalls: BTreeMap<u32, f64> = scene_targets
+        .iter()
+        .map(|(&s, &n)| (s, recall(scene_tps[&s], n)))
+        .collect();
+    Scored {
+        scores: Scores {
+            recall: recall(tps, targets),
+            mean_obj_recall: mean(&obj_recalls.values().copied().collect::<Vec<_>>()),
+            mean_scene_recall: mean(&scene_recalls.values().copied().collect::<Vec<_>>()),
+            obj_recalls,
+            scene_recalls,
+            gt_count,
+            targets_count: targets,
+            tp_count: tps,
+        },
+        matched: all_matched,
+    }
+}
+
+/// bop_toolkit's `calc_recall`: 0 when there is nothing to find.
+pub fn recall(tp: usize, targets: usize) -> f64 {
+    if targets == 0 {
+        0.0
+    } else {
+        tp as f64 / targets as f64
+    }
+}
+
+/// The arithmetic mean with numpy's pairwise summation (`np.mean`), so that averaged scores
+/// agree with the reference bit for bit. Empty input gives NaN, as in numpy.
+pub fn mean(values: &[f64]) -> f64 {
+    pairwise_sum(values) / values.len() as f64
+}
+
+fn pairwise_sum(a: &[f64]) -> f64 {
+    const BLOCK: usize = 128;
+    let n = a.len();
+    if n < 8 {
+        let mut s = 0.0;
+        for &v in a {
+            s += v;
+        }
+        s
+    } else if n <= BLOCK {
+        let mut r = [0.0f64; 8];
+        r.copy_from_slice(&a[..8]);
+        let mut i = 8;
+        while i < n - n % 8 {
+            for j in 0..8 {
+                r[j] += a[i + j];
+            }
+            i += 8;
+        }
+        let mut s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for &v in &a[i..] {
+            s += v;
+        }
+        s
+    } else {
+        let mut half = n / 2;
+        half -= half % 8;
+        pairwise_sum(&a[..half]) + pairwise_sum(&a[half..])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_follows_numpy_summation_order() {
+        // 0.1 summed ten times sequentially is 0.9999999999999999; numpy's blocked sum gives 1.0.
+        let tenths = vec![0.1; 10];
+        assert_eq!(mean(&tenths), 0.1);
+        let mut seq = 0.0;
+        for v in &tenths {
+            seq += v;
+        }
+        assert_ne!(seq / 10.0, mean(&tenths));
+        assert_eq!(mean(&[1.0, 2.0]), 1.5);
+        assert!(mean(&[]).is_nan());
+        let many: Vec<f64> = (0..1000).map(|i| i as f64).collect();
+        assert_eq!(mean(&many), 499.5);
+    }
+
+    #[test]
+    fn numpy_summation_order() {
+        let a: Vec<f64> = (0..300).map(|i| 0.1 * i as f64 + 1e-3).collect();
+        // Small arrays: left to right.
+        assert_eq!(
+            pairwise_sum(&a[..5]),
+            (((a[0] + a[1]) + a[2]) + a[3]) + a[4]
+        );
+        // 8..=128: eight accumulators, then the tail.
+        let nine = pairwise_sum(&a[..9]);
+        let r = &a[..8];
+        assert_eq!(
+            nine,
+            ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7])) + a[8]
+        );
+        // Large arrays: split at a multiple of 8.
+        assert_eq!(
+            pairwise_sum(&a),
+            pairwise_sum(&a[..144]) + pairwise_sum(&a[144..])
+        );
+        assert_eq!(pairwise_sum(&[]), 0.0);
+    }
+
+    #[test]
+    fn recall_of_nothing_is_zero() {
+        assert_eq!(recall(0, 0), 0.0);
+        assert_eq!(recall(3, 4), 0.75);
+    }
+}

@@ -1,0 +1,329 @@
+//! `poseboard eval` and `poseboard check-results`: the evaluator on the command line, for a
+//! researcher with a dataset and a result file on disk.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use evaluator::protocol::{NTop, ProtocolName};
+use evaluator::visibility::VisibMode;
+use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
+use indicatif::{ProgressBar, ProgressStyle};
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// A BOP dataset folder (models/ or models_eval/, test/, test_targets_bop19.json).
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// A result file in the BOP'19 CSV format.
+    #[arg(long)]
+    pub results: PathBuf,
+    #[arg(long, default_value = "bop19")]
+    pub protocol: ProtocolName,
+    /// Write the full report (every score, the parameters used) as JSON to this file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write every evaluated estimate's errors against each ground-truth instance as JSON.
+    #[arg(long)]
+    pub errors_out: Option<PathBuf>,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub overrides: Overrides,
+}
+
+/// Protocol parameters a user may override; unset ones keep the protocol's values.
+#[derive(Args, Debug, Default)]
+pub struct Overrides {
+    /// VSD visibility: bop18 (the paper: missing depth hides) or bop19 (missing depth shows).
+    #[arg(long)]
+    pub visib_mode: Option<VisibMode>,
+    /// VSD misalignment tolerance(s): mm, or fractions of the diameter when normalised.
+    #[arg(long, value_delimiter = ',')]
+    pub tau: Option<Vec<f64>>,
+    /// Whether --tau is a fraction of the object diameter (bop19's default) or mm (eccv18's).
+    #[arg(long)]
+    pub tau_normalized: Option<bool>,
+    /// VSD threshold(s) of correctness theta.
+    #[arg(long, value_delimiter = ',')]
+    pub theta: Option<Vec<f64>>,
+    /// VSD visibility tolerance delta in mm.
+    #[arg(long)]
+    pub delta: Option<f64>,
+    /// Estimates considered per target: N, -1 = as many as instances, 0 = all.
+    #[arg(long, allow_hyphen_values = true)]
+    pub n_top: Option<i64>,
+    /// Minimum visible fraction of a ground-truth instance to be a target (-1: the
+    /// inst_count most visible instances).
+    #[arg(long, allow_hyphen_values = true)]
+    pub visib_gt_min: Option<f64>,
+    /// Discretisation of continuous symmetries (fraction of the diameter).
+    #[arg(long)]
+    pub max_sym_disc_step: Option<f64>,
+}
+
+impl Overrides {
+    pub fn apply(&self, protocol: &mut Protocol) -> Result<()> {
+        if let Some(n) = self.n_top {
+            protocol.n_top = NTop::from_i64(n).map_err(anyhow::Error::msg)?;
+        }
+        if let Some(v) = self.visib_gt_min {
+            protocol.visib_gt_min = v;
+        }
+        if let Some(s) = self.max_sym_disc_step {
+            protocol.max_sym_disc_step = s;
+        }
+        let vsd_changed = self.visib_mode.is_some()
+            || self.tau.is_some()
+            || self.tau_normalized.is_some()
+            || self.theta.is_some()
+            || self.delta.is_some();
+        if vsd_changed {
+            let Some((p, ths)) = protocol.vsd() else {
+                bail!("this protocol has no VSD to configure");
+            };
+            let (p, ths) = (p.clone(), ths.to_vec());
+            let main_theta = protocol.main_theta;
+            let taus = self.tau.clone().unwrap_or_else(|| {
+                if protocol.name == ProtocolName::Eccv18 {
+                    vec![protocol.main_tau]
+                } else {
+                    p.taus.clone()
+                }
+            });
+            let thresholds = self.theta.clone().unwrap_or_else(|| {
+                if protocol.name == ProtocolName::Eccv18 {
+                    vec![main_theta]
+                } else {
+                    ths
+                }
+            });
+            protocol.set_vsd(
+                self.delta.unwrap_or(p.delta),
+                taus,
+                self.tau_normalized.unwrap_or(p.normalized_by_diameter),
+                self.visib_mode.unwrap_or(p.visib_mode),
+                thresholds,
+            );
+        }
+        protocol.validate().map_err(anyhow::Error::msg)
+    }
+}
+
+pub fn run_eval(args: EvalArgs) -> Result<()> {
+    let mut protocol = Protocol::named(args.protocol);
+    args.overrides.apply(&mut protocol)?;
+    let dataset = load_dataset(&args.dataset)?;
+    let results = load_results(&args.results)?;
+
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = args.threads {
+        pool = pool.num_threads(n);
+    }
+    let pool = pool.build().context("cannot start the worker threads")?;
+    let bar = Bar::new();
+    let evaluation = pool
+        .install(|| evaluate(&dataset, &results, &protocol, &bar, &AtomicBool::new(false)))
+        .context("evaluation failed")?;
+    bar.finish();
+
+    for w in &evaluation.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    print!("{}", table(&evaluation.report));
+    if let Some(out) = &args.out {
+        write_json(out, &evaluation.report)?;
+    }
+    if let Some(out) = &args.errors_out {
+        let rows: Vec<serde_json::Value> = evaluation
+            .errors
+            .iter()
+            .map(|e| {
+                let errors: serde_json::Map<String, serde_json::Value> = evaluation
+                    .columns
+                    .iter()
+                    .enumerate()
+                    .map(|(c, col)| (col.signature.clone(), serde_json::json!(e.errors[c])))
+                    .collect();
+                serde_json::json!({
+                    "scene_id": e.scene_id, "im_id": e.im_id, "obj_id": e.obj_id,
+                    "est_id": e.est_id, "score": e.score, "gt_ids": e.gt_ids, "errors": errors,
+                })
+            })
+            .collect();
+        write_json(out, &rows)?;
+    }
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// The result file to validate.
+    pub results: PathBuf,
+    /// A dataset to report coverage against (targets without estimates, ignored estimates).
+    #[arg(long)]
+    pub dataset: Option<PathBuf>,
+}
+
+pub fn run_check(args: CheckArgs) -> Result<()> {
+    let results = load_results(&args.results)?;
+    println!(
+        "{}: {} estimates for {} images, OK",
+        args.results.display(),
+        results.estimates.len(),
+        results.image_times.len().max(
+            results
+                .estimates
+                .iter()
+                .map(|e| (e.scene_id, e.im_id))
+                .collect::<std::collections::BTreeSet<_>>()
+                .len()
+        )
+    );
+    if let Some(dir) = &args.dataset {
+        let dataset = load_dataset(dir)?;
+        let targets: std::collections::HashSet<(u32, u32, u32)> = dataset
+            .targets
+            .iter()
+            .map(|t| (t.scene_id, t.im_id, t.obj_id))
+            .collect();
+        let covered: std::collections::HashSet<(u32, u32, u32)> = results
+            .estimates
+            .iter()
+            .map(|e| (e.scene_id, e.im_id, e.obj_id))
+            .collect();
+        let ignored = results
+            .estimates
+            .iter()
+            .filter(|e| !targets.contains(&(e.scene_id, e.im_id, e.obj_id)))
+            .count();
+        let missing = targets.difference(&covered).count();
+        println!(
+            "{}: {} targets, {} without an estimate; {} estimates are not for a target and would be ignored",
+            dataset.name,
+            targets.len(),
+            missing,
+            ignored
+        );
+    }
+    Ok(())
+}
+
+fn load_dataset(dir: &Path) -> Result<Dataset> {
+    Dataset::load(dir).with_context(|| format!("cannot load the dataset in {}", dir.display()))
+}
+
+fn load_results(path: &Path) -> Result<evaluator::Results> {
+    results::load_results(path).map_err(|e| match e {
+        evaluator::Error::Results(problems) => {
+            anyhow::anyhow!("{} is not a valid result file:\n{problems}", path.display())
+        }
+        other => anyhow::Error::new(other),
+    })
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The scores as a table for the terminal.
+pub fn table(r: &Report) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "dataset {}  protocol {}  estimates {} (evaluated {}, ignored {})",
+        r.dataset,
+        r.protocol.as_str(),
+        r.estimates_count,
+        r.estimates_evaluated,
+        r.estimates_ignored
+    );
+    match r.protocol {
+        ProtocolName::Eccv18 => {
+            if let Some(l) = &r.localization {
+                let _ = writeln!(
+                    s,
+                    "VSD recall (tau {} mm, theta {}): {:.4}   [{} of {} targets]",
+                    r.parameters.main_tau,
+                    r.parameters.main_theta,
+                    l.recall,
+                    l.tp_count,
+                    l.targets_count
+                );
+                let _ = writeln!(s, "mean object recall {:.4}", l.mean_obj_recall);
+                let _ = writeln!(s, "{:>8}  {:>8}", "object", "recall");
+                for (o, v) in &l.obj_recalls {
+                    let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+                }
+                let _ = writeln!(s, "{:>8}  {:>8}", "scene", "recall");
+                for (o, v) in &l.scene_recalls {
+                    let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+                }
+            }
+            if let Some(t) = r.average_time_per_target {
+                let _ = writeln!(s, "average time per target: {t:.3} s");
+            }
+        }
+        ProtocolName::Bop19 => {
+            let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+            let _ = writeln!(
+                s,
+                "AR {}   AR_VSD {}   AR_MSSD {}   AR_MSPD {}",
+                f(r.bop19_average_recall),
+                f(r.bop19_average_recall_vsd),
+                f(r.bop19_average_recall_mssd),
+                f(r.bop19_average_recall_mspd)
+            );
+            let _ = writeln!(s, "{:>8}  {:>8}", "object", "AR");
+            for (o, v) in &r.obj_average_recalls {
+                let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+            }
+            if let Some(t) = r.bop19_average_time_per_image {
+                let _ = writeln!(s, "average time per image: {t:.3} s");
+            }
+        }
+    }
+    for (name, ar) in &r.average_recalls {
+        // Errors beyond the protocol's own (e.g. ADD) get their average recall listed.
+        if !matches!(name.as_str(), "vsd" | "mssd" | "mspd") {
+            let _ = writeln!(s, "average recall {name}: {ar:.4}");
+        }
+    }
+    s
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal.
+struct Bar(ProgressBar);
+
+impl Bar {
+    fn new() -> Self {
+        let bar = ProgressBar::hidden();
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} estimates  {elapsed} (eta {eta})")
+                .expect("a valid template"),
+        );
+        Bar(bar)
+    }
+
+    fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+impl Progress for Bar {
+    fn start(&self, total: u64) {
+        self.0.set_length(total);
+        self.0
+            .set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        self.0.enable_steady_tick(Duration::from_millis(200));
+    }
+
+    fn advance(&self, n: u64) {
+        self.0.inc(n);
+    }
+}
