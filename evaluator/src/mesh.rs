@@ -45,6 +45,37 @@ impl Mesh {
     }
 }
 
+/// An axis-aligned cube of side `2 * half` centred at the origin, for tests of the renderer
+/// and of VSD.
+#[cfg(test)]
+pub(crate) fn test_cube(half: f64) -> Mesh {
+    let mut vertices = Vec::new();
+    for x in [-half, half] {
+        for y in [-half, half] {
+            for z in [-half, half] {
+                vertices.push(Pt3::new(x, y, z));
+            }
+        }
+    }
+    // Vertex index = 4 * (x > 0) + 2 * (y > 0) + (z > 0).
+    let quads = [
+        [0, 1, 3, 2],
+        [4, 6, 7, 5],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Mesh {
+        vertices,
+        triangles,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,7 +12,7 @@ pub use mspd::mspd;
 pub use mssd::mssd;
 pub use symmetry::symmetry_transformations;
 
-use crate::math::Vec3;
+use crate::math::{Pose, Vec3};
 
 /// bop_toolkit skips MSSD, ADD and ADI (error = infinity) when the model's bounding spheres at
 /// the two poses cannot touch: the centres are at least a diameter apart.
@@ -31,4 +31,31 @@ pub fn sphere_projections_overlap(radius: f64, p1: &Vec3, p2: &Vec3) -> bool {
     let (x2, y2) = (p2.x / p2.z, p2.y / p2.z);
     let dist = ((x1 - x2).powi(2) + (y1 - y2).powi(2)).sqrt();
     dist < radius * (1.0 / p1.z + 1.0 / p2.z)
+}
+
+/// `min over symmetries s of max over points i of sqrt(dist_sq(prepare(s), i))`, the shape of
+/// MSSD and MSPD. A symmetry's points stop being visited once it cannot beat the best one, which
+/// leaves the minimum unchanged.
+fn min_over_symmetries<T>(
+    syms: &[Pose],
+    n_points: usize,
+    prepare: impl Fn(&Pose) -> T,
+    dist_sq: impl Fn(&T, usize) -> f64,
+) -> f64 {
+    let mut best_sq = f64::INFINITY;
+    for sym in syms {
+        let prepared = prepare(sym);
+        let mut worst_sq = 0.0f64;
+        for i in 0..n_points {
+            let d = dist_sq(&prepared, i);
+            if d > worst_sq {
+                worst_sq = d;
+                if worst_sq >= best_sq {
+                    break;
+                }
+            }
+        }
+        best_sq = best_sq.min(worst_sq);
+    }
+    best_sq.sqrt()
 }

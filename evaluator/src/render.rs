@@ -241,39 +241,12 @@ mod tests {
         Renderer::new().render(mesh, &corners, pose, &camera(), 640, 480)
     }
 
-    fn cube(half: f64) -> Mesh {
-        let mut vertices = Vec::new();
-        for x in [-half, half] {
-            for y in [-half, half] {
-                for z in [-half, half] {
-                    vertices.push(Pt3::new(x, y, z));
-                }
-            }
-        }
-        let quads = [
-            [0, 1, 3, 2],
-            [4, 6, 7, 5],
-            [0, 4, 5, 1],
-            [2, 3, 7, 6],
-            [0, 2, 6, 4],
-            [1, 5, 7, 3],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            vertices,
-            triangles,
-        }
-    }
-
     #[test]
     fn a_cube_facing_the_camera_covers_the_pixels_whose_centres_its_face_contains() {
         // The front face at z = 950 spans u in 320 ± 500 * 50 / 950 = [293.68, 346.32]:
         // the pixels whose centres i + 0.5 lie inside are 294..=345.
         let pose = Pose::new(Mat3::identity(), Vec3::new(0.0, 0.0, 1000.0));
-        let d = render(&cube(50.0), &pose);
+        let d = render(&crate::mesh::test_cube(50.0), &pose);
         assert_eq!((d.x0, d.width), (294, 52));
         assert_eq!((d.y0, d.height), (214, 52));
         assert_eq!(d.count_nonzero(), 52 * 52);

@@ -378,3 +378,42 @@ fn estimates_for_non_targets_are_ignored_and_reported() {
             .any(|w| w.contains("not test targets"))
     );
 }
+
+#[test]
+fn a_file_with_no_usable_estimate_scores_zero_with_a_warning() {
+    let csv = "scene_id,im_id,obj_id,score,R,t,time\n9,9,1,0.5,1 0 0 0 1 0 0 0 1,0 0 500,0.1\n";
+    let results = results::parse_results(csv.as_bytes()).expect("valid file");
+    for protocol in [Protocol::eccv18(), Protocol::bop19()] {
+        let ev = evaluate(
+            dataset(),
+            &results,
+            &protocol,
+            &NoProgress,
+            &AtomicBool::new(false),
+        )
+        .expect("evaluation succeeds");
+        assert_eq!(ev.report.headline(), 0.0);
+        assert_eq!(ev.report.estimates_ignored, 1);
+        assert!(
+            ev.report
+                .warnings
+                .iter()
+                .any(|w| w.contains("every score is 0"))
+        );
+    }
+}
+
+#[test]
+fn cancelling_stops_the_evaluation() {
+    let path = fixtures().join("results/noisesmall_synthA-test.csv");
+    let results = results::load_results(&path).expect("reference results parse");
+    let cancelled = AtomicBool::new(true);
+    let outcome = evaluate(
+        dataset(),
+        &results,
+        &Protocol::bop19(),
+        &NoProgress,
+        &cancelled,
+    );
+    assert!(matches!(outcome, Err(evaluator::Error::Cancelled)));
+}

@@ -18,7 +18,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Evaluate a result file on a dataset and print the scores.
-    Eval(eval::EvalArgs),
+    Eval(Box<eval::EvalArgs>),
     /// Validate a result file without evaluating it.
     CheckResults(eval::CheckArgs),
 }

@@ -135,6 +135,39 @@ fn overrides_are_applied_and_recorded() {
 }
 
 #[test]
+fn extra_errors_report_add_and_adi_recalls() {
+    let (output, report) = eval(
+        "symflip_synthA-test",
+        &[
+            "--protocol",
+            "bop19",
+            "--extra-errors",
+            "add,adi",
+            "--ad-threshold",
+            "0.1",
+        ],
+    );
+    let recall = |dir: &str| {
+        let exp = expected(
+            "symflip_synthA-test",
+            &format!("errors/{dir}/scores_th=0.100_min-visib=-1.000.json"),
+        );
+        exp["recall"].as_f64().expect("recall")
+    };
+    assert_eq!(
+        report["average_recalls"]["add"].as_f64(),
+        Some(recall("add"))
+    );
+    assert_eq!(
+        report["average_recalls"]["adi"].as_f64(),
+        Some(recall("adi"))
+    );
+    // A symmetric flip is wrong under ADD and right under ADI for the symmetric objects.
+    assert!(recall("adi") > recall("add"));
+    assert!(String::from_utf8_lossy(&output.stdout).contains("average recall add"));
+}
+
+#[test]
 fn a_malformed_file_exits_non_zero_naming_the_lines() {
     let dataset = fixtures().join("dataset");
     for (file, message) in [

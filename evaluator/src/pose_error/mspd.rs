@@ -17,27 +17,15 @@ pub fn mspd(
     let (pr, pt) = projection(k, est);
     scratch.clear();
     scratch.extend(pts.iter().map(|p| project(&pr, &pt, p)));
-    let mut best = f64::INFINITY;
-    for sym in syms {
-        let (gr, gtt) = projection(k, &gt.compose(sym));
-        let best_sq = best * best;
-        let mut worst_sq = 0.0f64;
-        for (p, e) in pts.iter().zip(scratch.iter()) {
-            let g = project(&gr, &gtt, p);
-            let d = (e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2);
-            if d > worst_sq {
-                worst_sq = d;
-                if worst_sq >= best_sq {
-                    break;
-                }
-            }
-        }
-        let worst = worst_sq.sqrt();
-        if worst < best {
-            best = worst;
-        }
-    }
-    best
+    super::min_over_symmetries(
+        syms,
+        pts.len(),
+        |sym| projection(k, &gt.compose(sym)),
+        |(r, t), i| {
+            let (e, g) = (scratch[i], project(r, t, &pts[i]));
+            (e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)
+        },
+    )
 }
 
 fn projection(k: &Intrinsics, pose: &Pose) -> (Mat3, Vec3) {

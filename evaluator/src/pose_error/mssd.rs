@@ -8,27 +8,12 @@ use crate::math::{Pose, Pt3, Vec3};
 pub fn mssd(est: &Pose, gt: &Pose, pts: &[Pt3], syms: &[Pose], scratch: &mut Vec<Vec3>) -> f64 {
     scratch.clear();
     scratch.extend(pts.iter().map(|p| est.transform(p)));
-    let mut best = f64::INFINITY;
-    for sym in syms {
-        let g = gt.compose(sym);
-        let mut worst_sq = 0.0f64;
-        let best_sq = best * best;
-        for (p, e) in pts.iter().zip(scratch.iter()) {
-            let d = (e - g.transform(p)).norm_squared();
-            if d > worst_sq {
-                worst_sq = d;
-                // This symmetry can no longer beat the best one: skipping it leaves the minimum unchanged.
-                if worst_sq >= best_sq {
-                    break;
-                }
-            }
-        }
-        let worst = worst_sq.sqrt();
-        if worst < best {
-            best = worst;
-        }
-    }
-    best
+    super::min_over_symmetries(
+        syms,
+        pts.len(),
+        |sym| gt.compose(sym),
+        |g, i| (scratch[i] - g.transform(&pts[i])).norm_squared(),
+    )
 }
 
 #[cfg(test)]

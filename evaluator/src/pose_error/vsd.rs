@@ -205,42 +205,12 @@ pub fn vsd(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::{Pose, Pt3, Vec3};
+    use crate::math::{Pose, Vec3};
     use crate::mesh::Mesh;
     use crate::render::Renderer;
 
     fn k() -> Intrinsics {
         Intrinsics::from_row_major(&[572.4, 0.0, 325.3, 0.0, 573.6, 242.0, 0.0, 0.0, 1.0])
-    }
-
-    /// A 60 x 60 x 60 mm cube centred at the origin.
-    fn cube() -> Mesh {
-        let h = 30.0;
-        let mut vertices = Vec::new();
-        for x in [-h, h] {
-            for y in [-h, h] {
-                for z in [-h, h] {
-                    vertices.push(Pt3::new(x, y, z));
-                }
-            }
-        }
-        // Vertex index = 4 * (x>0) + 2 * (y>0) + (z>0).
-        let quads = [
-            [0, 1, 3, 2],
-            [4, 6, 7, 5],
-            [0, 4, 5, 1],
-            [2, 3, 7, 6],
-            [0, 2, 6, 4],
-            [1, 5, 7, 3],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            vertices,
-            triangles,
-        }
     }
 
     /// A scene whose measured depth is the cube itself at `gt` (a perfect sensor).
@@ -284,14 +254,14 @@ mod tests {
 
     #[test]
     fn the_gt_pose_gives_zero() {
-        let mesh = cube();
+        let mesh = crate::mesh::test_cube(30.0);
         let gt = gt_pose();
         assert_eq!(error(&mesh, &gt, &gt, &params(vec![20.0])), vec![0.0]);
     }
 
     #[test]
     fn a_30mm_shift_along_the_optical_axis_fails_tau_20_and_passes_tau_80() {
-        let mesh = cube();
+        let mesh = crate::mesh::test_cube(30.0);
         let gt = gt_pose();
         let est = Pose::new(gt.r, gt.t * (830.0 / 800.0));
         let e = error(&mesh, &gt, &est, &params(vec![20.0, 80.0]));
@@ -303,7 +273,7 @@ mod tests {
 
     #[test]
     fn a_symmetric_flip_of_a_cube_is_correct() {
-        let mesh = cube();
+        let mesh = crate::mesh::test_cube(30.0);
         let gt = gt_pose();
         let quarter = nalgebra::Rotation3::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2)
             .into_inner();
@@ -314,7 +284,7 @@ mod tests {
 
     #[test]
     fn disjoint_silhouettes_give_one() {
-        let mesh = cube();
+        let mesh = crate::mesh::test_cube(30.0);
         let gt = gt_pose();
         let est = Pose::new(gt.r, gt.t + Vec3::new(200.0, 0.0, 0.0));
         assert_eq!(error(&mesh, &gt, &est, &params(vec![20.0])), vec![1.0]);

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use evaluator::protocol::{NTop, ProtocolName};
+use evaluator::protocol::{ErrorKind, ErrorSpec, NTop, ProtocolName};
 use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -63,6 +63,20 @@ pub struct Overrides {
     /// Discretisation of continuous symmetries (fraction of the diameter).
     #[arg(long)]
     pub max_sym_disc_step: Option<f64>,
+    /// Also compute these errors: add, adi, ad (ADI for objects with declared symmetries,
+    /// ADD for the others), reported at --ad-threshold.
+    #[arg(long, value_delimiter = ',')]
+    pub extra_errors: Vec<ExtraError>,
+    /// Threshold of correctness of the extra errors, as a fraction of the object diameter.
+    #[arg(long, default_value_t = 0.1)]
+    pub ad_threshold: f64,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ExtraError {
+    Add,
+    Adi,
+    Ad,
 }
 
 impl Overrides {
@@ -108,6 +122,19 @@ impl Overrides {
                 self.visib_mode.unwrap_or(p.visib_mode),
                 thresholds,
             );
+        }
+        for extra in &self.extra_errors {
+            let kind = match extra {
+                ExtraError::Add => ErrorKind::Add,
+                ExtraError::Adi => ErrorKind::Adi,
+                ExtraError::Ad => ErrorKind::Ad,
+            };
+            if !protocol.errors.iter().any(|e| e.kind == kind) {
+                protocol.errors.push(ErrorSpec {
+                    kind,
+                    thresholds: vec![self.ad_threshold],
+                });
+            }
         }
         protocol.validate().map_err(anyhow::Error::msg)
     }
