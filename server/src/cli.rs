@@ -1,6 +1,7 @@
 //! The `poseboard` command line: one subcommand per way of using poseboard.
 
 pub mod eval;
+pub mod service;
 
 use clap::{Parser, Subcommand};
 
@@ -17,8 +18,29 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Run the web service (leaderboards, uploads) with its evaluation workers.
+    Serve(service::ServeArgs),
+    /// Run evaluation workers only, sharing a PostgreSQL database with a `serve`.
+    Worker(service::WorkerArgs),
+    /// Apply the database migrations and exit.
+    Migrate(service::WorkerArgs),
+    /// Dataset tools.
+    #[command(subcommand)]
+    Dataset(service::DatasetCommand),
     /// Evaluate a result file on a dataset and print the scores.
     Eval(Box<eval::EvalArgs>),
     /// Validate a result file without evaluating it.
     CheckResults(eval::CheckArgs),
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Eval(args) => eval::run_eval(*args),
+        Command::CheckResults(args) => eval::run_check(args),
+        Command::Serve(args) => service::serve(args),
+        Command::Worker(args) => service::worker(args),
+        Command::Migrate(args) => service::migrate(args),
+        Command::Dataset(cmd) => service::dataset(cmd),
+    }
 }

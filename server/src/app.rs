@@ -1,0 +1,120 @@
+//! The application state shared by the HTTP handlers and the workers, and the start-up
+//! sequence: database, datasets, demo data.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use evaluator::Dataset;
+use tokio::sync::{Mutex, Notify};
+
+use crate::config::Config;
+use crate::error::{AppError, AppResult};
+use crate::store::{DatasetRow, Store};
+
+pub struct App {
+    pub store: Store,
+    pub config: Config,
+    /// Wakes idle workers when a submission is queued (the database stays the truth).
+    pub wake: Notify,
+    /// The evaluation threads; handlers never evaluate on the async runtime.
+    pub pool: rayon::ThreadPool,
+    datasets: Mutex<HashMap<i64, Arc<Dataset>>>,
+}
+
+pub type AppState = Arc<App>;
+
+impl App {
+    /// Connects and migrates the database, registers the datasets (generating the demo data
+    /// on a first start), and returns the state.
+    pub async fn start(config: Config) -> anyhow::Result<AppState> {
+        std::fs::create_dir_all(&config.data_dir)?;
+        std::fs::create_dir_all(config.submissions_dir())?;
+        let store = Store::connect(&config.database_url()).await?;
+        store.migrate().await?;
+        let mut pool = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("eval-{i}"));
+        if let Some(n) = config.eval_threads {
+            pool = pool.num_threads(n);
+        }
+        let app = Arc::new(App {
+            store,
+            config,
+            wake: Notify::new(),
+            pool: pool.build()?,
+            datasets: Mutex::new(HashMap::new()),
+        });
+        if !app.config.no_demo && app.config.datasets.is_none() {
+            crate::demo_setup::ensure_demo_dataset(&app.config.datasets_dir()).await?;
+        }
+        app.register_datasets().await?;
+        if !app.config.no_demo && app.config.datasets.is_none() {
+            crate::demo_setup::ensure_demo_submissions(&app).await?;
+        }
+        Ok(app)
+    }
+
+    /// Every subfolder of the datasets directory that loads as a BOP dataset is served.
+    async fn register_datasets(&self) -> anyhow::Result<()> {
+        let dir = self.config.datasets_dir();
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            tracing::warn!(dir = %dir.display(), "no datasets directory");
+            return Ok(());
+        };
+        let mut folders: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok())
+            .map(|e| e.path())
+            .filter(|p| p.join("test_targets_bop19.json").is_file())
+            .collect();
+        folders.sort();
+        for folder in folders {
+            let path = folder.clone();
+            let loaded = tokio::task::spawn_blocking(move || Dataset::load(&path)).await?;
+            match loaded {
+                Ok(ds) => {
+                    let row = describe(&ds, &folder);
+                    let id = self.store.upsert_dataset(&row).await?;
+                    tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered");
+                    self.datasets.lock().await.insert(id, Arc::new(ds));
+                }
+                Err(e) => tracing::error!(folder = %folder.display(), error = %e, "dataset skipped"),
+            }
+        }
+        Ok(())
+    }
+
+    /// The loaded dataset of a registered id (loaded from disk on first use by this process).
+    pub async fn dataset(&self, row: &DatasetRow) -> AppResult<Arc<Dataset>> {
+        if let Some(ds) = self.datasets.lock().await.get(&row.id) {
+            return Ok(ds.clone());
+        }
+        let path = PathBuf::from(&row.path);
+        let ds = tokio::task::spawn_blocking(move || Dataset::load(&path))
+            .await
+            .map_err(|e| AppError::Internal(e.to_string()))?
+            .map_err(|e| AppError::Internal(format!("dataset {}: {e}", row.name)))?;
+        let ds = Arc::new(ds);
+        self.datasets.lock().await.insert(row.id, ds.clone());
+        Ok(ds)
+    }
+
+    /// Where an uploaded file with this content hash is kept.
+    pub fn stored_file(&self, sha256: &str) -> PathBuf {
+        self.config.submissions_dir().join(format!("{sha256}.csv"))
+    }
+}
+
+fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
+    DatasetRow {
+        id: 0,
+        name: ds.name.clone(),
+        path: folder.display().to_string(),
+        objects_count: ds.objects.len() as i64,
+        scenes_count: ds.scenes.len() as i64,
+        images_count: ds.scenes.values().map(|s| s.images.len() as i64).sum(),
+        targets_count: ds.targets.len() as i64,
+        instances_count: ds.targets.iter().map(|t| t.inst_count as i64).sum(),
+        image_width: ds.image_size.0 as i64,
+        image_height: ds.image_size.1 as i64,
+        added_at: 0,
+    }
+}

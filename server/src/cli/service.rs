@@ -1,0 +1,135 @@
+//! `poseboard serve`, `worker`, `migrate` and `dataset`: the service side of the command line.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+use crate::app::App;
+use crate::config::{Config, ServeConfig};
+use crate::demo::{SynthOptions, write_dataset, write_demo_results};
+
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    #[command(flatten)]
+    pub config: ServeConfig,
+}
+
+#[derive(Args, Debug)]
+pub struct WorkerArgs {
+    #[command(flatten)]
+    pub config: Config,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum DatasetCommand {
+    /// Write the synthetic demo dataset (BOP format) into DIR.
+    Synth {
+        dir: PathBuf,
+        #[arg(long, default_value_t = SynthOptions::default().seed)]
+        seed: u64,
+        #[arg(long, default_value_t = SynthOptions::default().scenes)]
+        scenes: u32,
+        #[arg(long, default_value_t = SynthOptions::default().images_per_scene)]
+        images_per_scene: u32,
+    },
+    /// Write the demo result files (precise, noisy, rough) for a synthetic dataset into OUT.
+    DemoResults {
+        dataset: PathBuf,
+        out: PathBuf,
+        #[arg(long, default_value_t = 11)]
+        seed: u64,
+    },
+}
+
+fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_multi_thread().enable_all().build()?)
+}
+
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| "info,tower_http=info,sqlx=warn".into());
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    init_logging();
+    runtime()?.block_on(async move {
+        let bind = args.config.bind;
+        let app = App::start(args.config.common).await?;
+        crate::jobs::spawn_workers(&app);
+        let listener = tokio::net::TcpListener::bind(bind).await?;
+        // Scripts and tests read this line to learn the port when binding to port 0.
+        println!("poseboard listening on http://{}", listener.local_addr()?);
+        tracing::info!(address = %listener.local_addr()?, "listening");
+        axum::serve(listener, crate::routes::router(app))
+            .with_graceful_shutdown(async {
+                let _ = tokio::signal::ctrl_c().await;
+            })
+            .await?;
+        Ok(())
+    })
+}
+
+pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
+    init_logging();
+    runtime()?.block_on(async move {
+        let mut config = args.config;
+        // Workers never generate demo data; the server that owns the datasets does.
+        config.no_demo = true;
+        let app = App::start(config).await?;
+        let handles = crate::jobs::spawn_workers(&app);
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            _ = futures_join(handles) => {}
+        }
+        Ok(())
+    })
+}
+
+async fn futures_join(handles: Vec<tokio::task::JoinHandle<()>>) {
+    for h in handles {
+        let _ = h.await;
+    }
+}
+
+pub fn migrate(args: WorkerArgs) -> anyhow::Result<()> {
+    init_logging();
+    runtime()?.block_on(async move {
+        let store = crate::store::Store::connect(&args.config.database_url()).await?;
+        store.migrate().await?;
+        println!("migrations applied");
+        Ok(())
+    })
+}
+
+pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
+    match cmd {
+        DatasetCommand::Synth {
+            dir,
+            seed,
+            scenes,
+            images_per_scene,
+        } => {
+            write_dataset(
+                &dir,
+                &SynthOptions {
+                    seed,
+                    scenes,
+                    images_per_scene,
+                },
+            )?;
+            println!("wrote a synthetic BOP dataset to {}", dir.display());
+            Ok(())
+        }
+        DatasetCommand::DemoResults { dataset, out, seed } => {
+            std::fs::create_dir_all(&out)?;
+            for demo in write_demo_results(&dataset, &out, seed)? {
+                println!("{}: {}", demo.method, demo.path.display());
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! The first-start experience: with nothing configured, the service generates a small
+//! synthetic dataset and a few demo submissions, so that a newcomer sees a live leaderboard.
+
+use std::path::Path;
+
+use crate::app::App;
+use crate::demo::{DEMO_DATASET, SynthOptions, write_dataset, write_demo_results};
+use crate::routes::submissions::{Upload, UploadedFile, accept};
+
+/// Writes the demo dataset into `datasets_dir` unless it holds datasets already.
+pub async fn ensure_demo_dataset(datasets_dir: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(datasets_dir)?;
+    let has_datasets = std::fs::read_dir(datasets_dir)?
+        .filter_map(|e| e.ok())
+        .any(|e| e.path().join("test_targets_bop19.json").is_file());
+    if has_datasets {
+        return Ok(());
+    }
+    let dir = datasets_dir.join(DEMO_DATASET);
+    // A half-written folder from an interrupted start is replaced.
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)?;
+    }
+    tracing::info!(dir = %dir.display(), "generating the demo dataset");
+    let target = dir.clone();
+    tokio::task::spawn_blocking(move || write_dataset(&target, &SynthOptions::default())).await??;
+    Ok(())
+}
+
+/// Submits the demo result files once, when the service has no submission yet.
+pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Result<()> {
+    if !app.store.recent_submissions(1).await?.is_empty() {
+        return Ok(());
+    }
+    let Some(row) = app.store.dataset_by_name(DEMO_DATASET).await? else {
+        return Ok(());
+    };
+    let out = tempfile::tempdir_in(&app.config.data_dir)?;
+    let dataset_dir = std::path::PathBuf::from(&row.path);
+    let out_dir = out.path().to_path_buf();
+    let demos = tokio::task::spawn_blocking(move || write_demo_results(&dataset_dir, &out_dir, 11)).await??;
+    for demo in demos {
+        let bytes = std::fs::read(&demo.path)?;
+        let tmp = tempfile::Builder::new()
+            .prefix("demo-")
+            .tempfile_in(app.config.submissions_dir())?;
+        std::fs::write(tmp.path(), &bytes)?;
+        let upload = Upload {
+            method: demo.method.clone(),
+            dataset: row.name.clone(),
+            protocol: None,
+            description: demo.description.clone(),
+            paper_url: String::new(),
+            code_url: String::new(),
+            public: true,
+            file: Some(UploadedFile {
+                name: demo
+                    .path
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                tmp: tmp.into_temp_path(),
+                sha256: {
+                    use sha2::Digest;
+                    hex::encode(sha2::Sha256::digest(&bytes))
+                },
+                size: bytes.len() as u64,
+            }),
+        };
+        accept(app, upload).await?;
+        tracing::info!(method = %demo.method, "demo submission queued");
+    }
+    Ok(())
+}

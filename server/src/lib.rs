@@ -1,0 +1,16 @@
+//! poseboard's service: the HTTP server, its storage, the evaluation workers, and the
+//! `poseboard` command line. The evaluation itself lives in the `evaluator` crate; data flows
+//! one way: upload → validate → queue → evaluate → store → page.
+
+pub mod app;
+pub mod chart;
+pub mod cli;
+pub mod config;
+pub mod demo;
+pub mod demo_setup;
+pub mod error;
+pub mod jobs;
+pub mod openapi;
+pub mod routes;
+pub mod store;
+pub mod views;

@@ -1,0 +1,56 @@
+//! The OpenAPI 3.1 description of `/api/v1`, served at `/api/v1/openapi.json`.
+
+use serde_json::{Value, json};
+
+pub fn document() -> Value {
+    let id_param = json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
+    json!({
+        "openapi": "3.1.0",
+        "info": {
+            "title": "poseboard API",
+            "version": env!("CARGO_PKG_VERSION"),
+            "description": "Evaluation and leaderboards of the BOP 6D object pose benchmark. Scores use bop_toolkit's key names."
+        },
+        "paths": {
+            "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
+            "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
+            "/api/v1/methods/{id}": { "get": { "summary": "A method and its public submissions", "parameters": [id_param],
+                "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } } },
+            "/api/v1/submissions": {
+                "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
+                "post": {
+                    "summary": "Upload a result file (BOP'19 CSV) for evaluation",
+                    "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
+                        "type": "object", "required": ["method", "dataset", "file"],
+                        "properties": {
+                            "method": { "type": "string", "maxLength": 100 },
+                            "dataset": { "type": "string" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18"], "description": "default: both" },
+                            "description": { "type": "string" },
+                            "paper_url": { "type": "string" },
+                            "code_url": { "type": "string" },
+                            "visibility": { "type": "string", "enum": ["public", "private"] },
+                            "file": { "type": "string", "format": "binary" }
+                        } } } } },
+                    "responses": {
+                        "202": { "description": "queued: {id, submission, preflight, url}" },
+                        "200": { "description": "the same file was already submitted for this method: the existing submission" },
+                        "400": { "description": "a missing or bad field" },
+                        "413": { "description": "the file is larger than the limit" },
+                        "422": { "description": "not a valid result file: {error, problems: [{line, message}]}" }
+                    }
+                }
+            },
+            "/api/v1/submissions/{id}": { "get": { "summary": "Status, progress, pre-flight report and, once done, the scores per protocol",
+                "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol",
+                "parameters": [
+                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
+                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" }
+                ],
+                "responses": { "200": { "description": "{protocol, parameters, datasets, rows}" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
+        }
+    })
+}

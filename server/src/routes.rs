@@ -1,0 +1,51 @@
+//! The HTTP surface: pages, the JSON API, static files, and the tower-http layers around them.
+
+pub mod api;
+pub mod pages;
+pub mod submissions;
+
+use std::time::Duration;
+
+use axum::Router;
+use axum::http::{HeaderValue, header};
+use tower_http::compression::CompressionLayer;
+use tower_http::limit::RequestBodyLimitLayer;
+use tower_http::services::ServeDir;
+use tower_http::set_header::SetResponseHeaderLayer;
+use tower_http::timeout::TimeoutLayer;
+use tower_http::trace::TraceLayer;
+
+use crate::app::AppState;
+
+/// Where the stylesheet and scripts are served from: the repository's `static/` folder.
+fn static_dir() -> std::path::PathBuf {
+    std::env::var_os("POSEBOARD_STATIC")
+        .map(Into::into)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../static"))
+}
+
+pub fn router(app: AppState) -> Router {
+    let max_upload = app.config.max_upload_bytes();
+    let static_files = Router::new()
+        .nest_service("/static", ServeDir::new(static_dir()))
+        .layer(SetResponseHeaderLayer::overriding(
+            header::CACHE_CONTROL,
+            HeaderValue::from_static("public, max-age=3600"),
+        ));
+    let pages = pages::router(max_upload)
+        .fallback(pages::not_found)
+        .layer(axum::middleware::from_fn(pages::html_errors));
+    Router::new()
+        .merge(api::router(max_upload))
+        .merge(pages)
+        .merge(static_files)
+        .layer(CompressionLayer::new())
+        // Uploads are bounded per route; this bounds every other body.
+        .layer(RequestBodyLimitLayer::new(max_upload as usize + 64 * 1024))
+        .layer(TimeoutLayer::with_status_code(
+            axum::http::StatusCode::REQUEST_TIMEOUT,
+            Duration::from_secs(120),
+        ))
+        .layer(TraceLayer::new_for_http())
+        .with_state(app)
+}

@@ -1,0 +1,102 @@
+//! The REST API under `/api/v1`: the JSON twin of every page, and submission upload.
+
+use std::str::FromStr;
+
+use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use evaluator::protocol::ProtocolName;
+use serde::Deserialize;
+use serde_json::json;
+
+use crate::app::AppState;
+use crate::error::{AppError, AppResult};
+use crate::routes::submissions::{Accepted, accept, read_upload};
+use crate::views;
+
+pub fn router(max_upload: u64) -> Router<AppState> {
+    Router::new()
+        .route("/api/v1/datasets", get(datasets))
+        .route("/api/v1/methods", get(methods))
+        .route("/api/v1/methods/{id}", get(method))
+        .route(
+            "/api/v1/submissions",
+            get(recent_submissions)
+                .post(create_submission)
+                .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024)),
+        )
+        .route("/api/v1/submissions/{id}", get(submission))
+        .route("/api/v1/leaderboards/{protocol}", get(leaderboard))
+        .route("/api/v1/openapi.json", get(openapi))
+}
+
+async fn datasets(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
+    Ok(Json(json!({ "datasets": app.store.datasets().await? })))
+}
+
+async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
+    Ok(Json(json!({ "methods": app.store.methods().await? })))
+}
+
+async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<Json<serde_json::Value>> {
+    let submissions = app.store.submissions_of_method(id).await?;
+    let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
+    if submissions.is_empty() {
+        // A method with only private submissions is not public.
+        return Err(AppError::NotFound);
+    }
+    Ok(Json(json!({ "method": method, "submissions": submissions })))
+}
+
+async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
+    Ok(Json(json!({ "submissions": app.store.recent_submissions(100).await? })))
+}
+
+async fn create_submission(State(app): State<AppState>, multipart: Multipart) -> AppResult<Response> {
+    let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let Accepted {
+        submission,
+        duplicate,
+        preflight,
+    } = accept(&app, upload).await?;
+    let status = if duplicate {
+        StatusCode::OK
+    } else {
+        StatusCode::ACCEPTED
+    };
+    let body = json!({
+        "id": submission.id,
+        "duplicate": duplicate,
+        "submission": submission,
+        "preflight": preflight,
+        "url": format!("/submissions/{}", submission.id),
+    });
+    Ok((status, Json(body)).into_response())
+}
+
+async fn submission(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<Json<views::SubmissionView>> {
+    Ok(Json(views::submission(&app, id).await?))
+}
+
+#[derive(Deserialize)]
+pub struct BoardQuery {
+    pub dataset: Option<String>,
+    pub sort: Option<String>,
+}
+
+async fn leaderboard(
+    State(app): State<AppState>,
+    Path(protocol): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<Json<views::Leaderboard>> {
+    let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
+    Ok(Json(views::leaderboard(&app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?))
+}
+
+/// The OpenAPI description of this API, written by hand: it is small, and a generator would
+/// need every handler annotated twice.
+async fn openapi() -> Json<serde_json::Value> {
+    Json(crate::openapi::document())
+}

@@ -1,0 +1,268 @@
+//! The HTML pages: leaderboards, methods, submissions, the upload form. Each renders the same
+//! view as its JSON twin under `/api/v1`.
+
+use std::str::FromStr;
+
+use askama::Template;
+use askama_web::WebTemplate;
+use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Redirect, Response};
+use axum::routing::get;
+use axum::Router;
+use evaluator::protocol::ProtocolName;
+
+use crate::app::AppState;
+use crate::chart::Chart;
+use crate::error::{AppError, AppResult, ErrorBody};
+use crate::routes::api::BoardQuery;
+use crate::routes::submissions::{accept, read_upload};
+use crate::store::{DatasetRow, MethodRow, SubmissionRow};
+use crate::views::{self, Leaderboard, SubmissionView};
+
+pub fn router(max_upload: u64) -> Router<AppState> {
+    Router::new()
+        .route("/", get(home))
+        .route("/leaderboards/{protocol}", get(leaderboard))
+        .route("/datasets", get(datasets))
+        .route("/methods/{id}", get(method))
+        .route("/submissions/{id}", get(submission))
+        .route(
+            "/submit",
+            get(submit_form)
+                .post(submit)
+                .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024)),
+        )
+}
+
+/// Formats scores and times for the templates.
+mod filters {
+    #[askama::filter_fn]
+    pub fn pct(v: &f64, _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(format!("{:.1}", v * 100.0))
+    }
+
+    /// A score that may be missing, whether the template holds it or computed it.
+    pub trait MaybeScore {
+        fn get(&self) -> Option<f64>;
+    }
+    impl MaybeScore for Option<f64> {
+        fn get(&self) -> Option<f64> {
+            *self
+        }
+    }
+    impl MaybeScore for &Option<f64> {
+        fn get(&self) -> Option<f64> {
+            **self
+        }
+    }
+
+    #[askama::filter_fn]
+    pub fn opt_pct(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(v.get().map_or("–".to_string(), |v| format!("{:.1}", v * 100.0)))
+    }
+
+    #[askama::filter_fn]
+    pub fn opt_secs(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(v.get().map_or("–".to_string(), |v| format!("{v:.3}")))
+    }
+
+    #[askama::filter_fn]
+    pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
+        let secs = ms / 1000;
+        let days = secs.div_euclid(86_400);
+        let rem = secs.rem_euclid(86_400);
+        let (y, m, d) = civil_from_days(days);
+        Ok(format!("{y:04}-{m:02}-{d:02} {:02}:{:02} UTC", rem / 3600, rem % 3600 / 60))
+    }
+
+    /// Days since 1970-01-01 to a proleptic Gregorian date (H. Hinnant's algorithm).
+    fn civil_from_days(z: i64) -> (i64, i64, i64) {
+        let z = z + 719_468;
+        let era = z.div_euclid(146_097);
+        let doe = z.rem_euclid(146_097);
+        let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+        let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+        let mp = (5 * doy + 2) / 153;
+        let d = doy - (153 * mp + 2) / 5 + 1;
+        let m = if mp < 10 { mp + 3 } else { mp - 9 };
+        (yoe + era * 400 + i64::from(m <= 2), m, d)
+    }
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "leaderboard.html")]
+struct LeaderboardPage {
+    board: Leaderboard,
+    protocols: [ProtocolName; 2],
+}
+
+async fn home(State(app): State<AppState>, Query(q): Query<BoardQuery>) -> AppResult<LeaderboardPage> {
+    leaderboard_page(&app, ProtocolName::Bop19, q).await
+}
+
+async fn leaderboard(
+    State(app): State<AppState>,
+    Path(protocol): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<LeaderboardPage> {
+    let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
+    leaderboard_page(&app, protocol, q).await
+}
+
+async fn leaderboard_page(app: &AppState, protocol: ProtocolName, q: BoardQuery) -> AppResult<LeaderboardPage> {
+    Ok(LeaderboardPage {
+        board: views::leaderboard(app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?,
+        protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
+    })
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "datasets.html")]
+struct DatasetsPage {
+    datasets: Vec<DatasetRow>,
+}
+
+async fn datasets(State(app): State<AppState>) -> AppResult<DatasetsPage> {
+    Ok(DatasetsPage {
+        datasets: app.store.datasets().await?,
+    })
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "method.html")]
+struct MethodPage {
+    method: MethodRow,
+    submissions: Vec<SubmissionRow>,
+}
+
+async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<MethodPage> {
+    let submissions = app.store.submissions_of_method(id).await?;
+    if submissions.is_empty() {
+        return Err(AppError::NotFound);
+    }
+    Ok(MethodPage {
+        method: app.store.method(id).await?.ok_or(AppError::NotFound)?,
+        submissions,
+    })
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "submission.html")]
+struct SubmissionPage {
+    view: SubmissionView,
+    charts: Vec<Chart>,
+    warnings: Vec<String>,
+    bop19: Option<serde_json::Value>,
+    eccv18: Option<serde_json::Value>,
+}
+
+impl SubmissionPage {
+    fn num(v: &serde_json::Value, key: &str) -> Option<f64> {
+        v.get(key).and_then(|x| x.as_f64())
+    }
+    fn objects(v: &serde_json::Value, key: &str) -> Vec<(String, f64)> {
+        v.get(key)
+            .and_then(|o| o.as_object())
+            .map(|o| o.iter().filter_map(|(k, x)| Some((k.clone(), x.as_f64()?))).collect())
+            .unwrap_or_default()
+    }
+}
+
+async fn submission(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<SubmissionPage> {
+    let view = views::submission(&app, id).await?;
+    let warnings = view
+        .preflight
+        .get("warnings")
+        .and_then(|w| w.as_array())
+        .map(|w| w.iter().filter_map(|s| s.as_str().map(str::to_string)).collect())
+        .unwrap_or_default();
+    Ok(SubmissionPage {
+        charts: view.charts.clone(),
+        bop19: view.scores.get("bop19").cloned(),
+        eccv18: view.scores.get("eccv18").cloned(),
+        warnings,
+        view,
+    })
+}
+
+#[derive(Template, WebTemplate, Default)]
+#[template(path = "submit.html")]
+struct SubmitPage {
+    datasets: Vec<DatasetRow>,
+    error: Option<ErrorBody>,
+    method: String,
+    dataset: String,
+    description: String,
+    paper_url: String,
+    code_url: String,
+    max_upload_mb: u64,
+}
+
+async fn submit_form(State(app): State<AppState>) -> AppResult<SubmitPage> {
+    Ok(SubmitPage {
+        datasets: app.store.datasets().await?,
+        max_upload_mb: app.config.max_upload_mb,
+        ..SubmitPage::default()
+    })
+}
+
+/// The form posts here; a valid upload redirects to its page, an invalid one shows the form
+/// again with every problem and the values typed so far.
+async fn submit(State(app): State<AppState>, multipart: Multipart) -> AppResult<Response> {
+    let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let typed = SubmitPage {
+        method: upload.method.clone(),
+        dataset: upload.dataset.clone(),
+        description: upload.description.clone(),
+        paper_url: upload.paper_url.clone(),
+        code_url: upload.code_url.clone(),
+        max_upload_mb: app.config.max_upload_mb,
+        ..SubmitPage::default()
+    };
+    match accept(&app, upload).await {
+        Ok(accepted) => Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response()),
+        Err(e) if e.status().is_client_error() => {
+            let status = e.status();
+            let page = SubmitPage {
+                datasets: app.store.datasets().await?,
+                error: Some(e.body()),
+                ..typed
+            };
+            Ok((status, page).into_response())
+        }
+        Err(e) => Err(e),
+    }
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "error.html")]
+struct ErrorPage {
+    status: u16,
+    body: ErrorBody,
+}
+
+/// Error responses of page routes become HTML pages (the JSON API keeps its JSON bodies).
+pub async fn html_errors(request: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let response = next.run(request).await;
+    let status = response.status();
+    match response.extensions().get::<ErrorBody>() {
+        Some(body) if status.is_client_error() || status.is_server_error() => {
+            let page = ErrorPage {
+                status: status.as_u16(),
+                body: body.clone(),
+            };
+            (status, page).into_response()
+        }
+        _ => response,
+    }
+}
+
+/// The page for any path that matches no route.
+pub async fn not_found() -> Response {
+    let page = ErrorPage {
+        status: 404,
+        body: AppError::NotFound.body(),
+    };
+    (StatusCode::NOT_FOUND, page).into_response()
+}

@@ -1,0 +1,200 @@
+//! The data behind each page, built once and rendered twice: as HTML by the templates and as
+//! JSON by the API, so that a page and its JSON twin can never disagree.
+
+use std::collections::BTreeMap;
+
+use evaluator::protocol::{Protocol, ProtocolName};
+use evaluator::report::{Parameters, parameters};
+use serde::Serialize;
+
+use crate::app::AppState;
+use crate::error::{AppError, AppResult};
+use crate::store::{BoardEntry, DatasetRow, SubmissionRow};
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Cell {
+    pub submission_id: i64,
+    pub score: f64,
+    pub recall: Option<f64>,
+    pub ar_vsd: Option<f64>,
+    pub ar_mssd: Option<f64>,
+    pub ar_mspd: Option<f64>,
+    pub time: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BoardRow {
+    pub rank: usize,
+    pub method_id: i64,
+    pub method: String,
+    /// Per dataset name, the method's score there.
+    pub scores: BTreeMap<String, Cell>,
+    /// Mean of the per-dataset scores; only when the method has a score on every dataset.
+    pub average: Option<f64>,
+    /// Mean of the reported times over the datasets that have one.
+    pub time: Option<f64>,
+    /// With one dataset selected: the per-object scores (recall or AR).
+    pub objects: BTreeMap<i64, f64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Leaderboard {
+    pub protocol: ProtocolName,
+    pub score_name: &'static str,
+    pub time_unit: &'static str,
+    pub parameters: Parameters,
+    pub datasets: Vec<DatasetRow>,
+    /// With `?dataset=NAME`, that dataset (and the rows carry per-object scores).
+    pub dataset: Option<DatasetRow>,
+    pub object_ids: Vec<i64>,
+    pub sort: String,
+    pub rows: Vec<BoardRow>,
+}
+
+pub fn score_name(p: ProtocolName) -> &'static str {
+    match p {
+        ProtocolName::Eccv18 => "recall (VSD, tau 20 mm, theta 0.3)",
+        ProtocolName::Bop19 => "average recall AR = (AR_VSD + AR_MSSD + AR_MSPD) / 3",
+    }
+}
+
+/// Builds a leaderboard. `sort` is `average` (default), `time`, `method`, or a dataset name.
+pub async fn leaderboard(
+    app: &AppState,
+    protocol: ProtocolName,
+    dataset: Option<&str>,
+    sort: Option<&str>,
+) -> AppResult<Leaderboard> {
+    let datasets = app.store.datasets().await?;
+    let selected = match dataset {
+        Some(name) if !name.is_empty() => Some(
+            datasets
+                .iter()
+                .find(|d| d.name == name)
+                .cloned()
+                .ok_or(AppError::NotFound)?,
+        ),
+        _ => None,
+    };
+    let entries = app
+        .store
+        .leaderboard(protocol, selected.as_ref().map(|d| d.id))
+        .await?;
+    let shown: Vec<&DatasetRow> = match &selected {
+        Some(d) => vec![d],
+        None => datasets.iter().collect(),
+    };
+    let mut by_method: BTreeMap<i64, BoardRow> = BTreeMap::new();
+    let mut object_ids = std::collections::BTreeSet::new();
+    for e in &entries {
+        let row = by_method.entry(e.method_id).or_insert_with(|| BoardRow {
+            rank: 0,
+            method_id: e.method_id,
+            method: e.method.clone(),
+            scores: BTreeMap::new(),
+            average: None,
+            time: None,
+            objects: BTreeMap::new(),
+        });
+        row.scores.insert(e.dataset.clone(), cell(e));
+        if selected.is_some() {
+            row.objects = e.object_scores.clone();
+            object_ids.extend(e.object_scores.keys().copied());
+        }
+    }
+    let mut rows: Vec<BoardRow> = by_method.into_values().collect();
+    for row in &mut rows {
+        let scores: Vec<f64> = shown
+            .iter()
+            .filter_map(|d| row.scores.get(&d.name).map(|c| c.score))
+            .collect();
+        if !scores.is_empty() && scores.len() == shown.len() {
+            row.average = Some(scores.iter().sum::<f64>() / scores.len() as f64);
+        }
+        let times: Vec<f64> = row.scores.values().filter_map(|c| c.time).collect();
+        if !times.is_empty() {
+            row.time = Some(times.iter().sum::<f64>() / times.len() as f64);
+        }
+    }
+    let sort = sort.unwrap_or("average").to_string();
+    let key = |r: &BoardRow| -> f64 {
+        match sort.as_str() {
+            "average" => r.average.unwrap_or(-1.0),
+            "time" => -r.time.unwrap_or(f64::INFINITY),
+            name => r.scores.get(name).map_or(-1.0, |c| c.score),
+        }
+    };
+    if sort == "method" {
+        rows.sort_by_key(|r| r.method.to_lowercase());
+    } else {
+        rows.sort_by(|a, b| key(b).total_cmp(&key(a)).then_with(|| a.method.cmp(&b.method)));
+    }
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.rank = i + 1;
+    }
+    Ok(Leaderboard {
+        protocol,
+        score_name: score_name(protocol),
+        time_unit: match protocol {
+            ProtocolName::Eccv18 => "s per target",
+            ProtocolName::Bop19 => "s per image",
+        },
+        parameters: parameters(&Protocol::named(protocol)),
+        datasets,
+        dataset: selected,
+        object_ids: object_ids.into_iter().collect(),
+        sort,
+        rows,
+    })
+}
+
+fn cell(e: &BoardEntry) -> Cell {
+    Cell {
+        submission_id: e.submission_id,
+        score: e.score.score,
+        recall: e.score.recall,
+        ar_vsd: e.score.ar_vsd,
+        ar_mssd: e.score.ar_mssd,
+        ar_mspd: e.score.ar_mspd,
+        time: e.score.time_avg,
+    }
+}
+
+/// A submission with everything its page shows.
+#[derive(Clone, Debug, Serialize)]
+pub struct SubmissionView {
+    #[serde(flatten)]
+    pub submission: SubmissionRow,
+    pub queue_position: Option<i64>,
+    pub preflight: serde_json::Value,
+    /// Per protocol, the full report (the same keys as `poseboard eval --out`).
+    pub scores: BTreeMap<String, serde_json::Value>,
+    #[serde(skip)]
+    pub charts: Vec<crate::chart::Chart>,
+}
+
+/// A submission as its owner may see it: private ones answer as missing to everyone else
+/// (accounts come later; until then private submissions are reachable only by their id).
+pub async fn submission(app: &AppState, id: i64) -> AppResult<SubmissionView> {
+    let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
+    let queue_position = match submission.status {
+        crate::store::Status::Queued => Some(app.store.queue_position(id).await?),
+        _ => None,
+    };
+    let mut scores = BTreeMap::new();
+    let mut charts = Vec::new();
+    for (score, json) in app.store.scores_of_submission(id).await? {
+        let report: serde_json::Value =
+            serde_json::from_str(&json).map_err(|e| AppError::Internal(e.to_string()))?;
+        scores.insert(score.protocol.as_str().to_string(), report);
+        let points = app.store.curve_points(score.id).await?;
+        charts.extend(crate::chart::charts(score.protocol, &points));
+    }
+    Ok(SubmissionView {
+        preflight: serde_json::from_str(&submission.preflight_json).unwrap_or(serde_json::Value::Null),
+        submission,
+        queue_position,
+        scores,
+        charts,
+    })
+}

@@ -1,0 +1,426 @@
+//! The service as users meet it: the real `poseboard serve` started on an ephemeral port, once
+//! with a fresh SQLite file and once with a fresh PostgreSQL database, driven over HTTP.
+//!
+//! PostgreSQL: `POSEBOARD_TEST_POSTGRES` (default `postgres://postgres@127.0.0.1:5432/test`)
+//! is used to create a uniquely named database per test, dropped afterwards.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use reqwest::blocking::{Client, multipart};
+use serde_json::Value;
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/reference")
+}
+
+const BIN: &str = env!("CARGO_BIN_EXE_poseboard");
+
+#[derive(Clone, Copy, Debug)]
+enum Db {
+    Sqlite,
+    Postgres,
+}
+
+/// A database for one test; a PostgreSQL one is dropped when this goes away.
+struct TestDb {
+    url: Option<String>,
+    drop_sql: Option<(String, String)>,
+}
+
+fn admin_url() -> String {
+    std::env::var("POSEBOARD_TEST_POSTGRES")
+        .unwrap_or_else(|_| "postgres://postgres@127.0.0.1:5432/test".to_string())
+}
+
+fn pg_exec(url: &str, sql: &str) {
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().expect("runtime");
+    rt.block_on(async {
+        use sqlx::Connection;
+        let mut conn = sqlx::PgConnection::connect(url).await.expect("PostgreSQL is reachable");
+        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
+            .execute(&mut conn)
+            .await
+            .expect("statement runs");
+    });
+}
+
+impl TestDb {
+    fn new(kind: Db, name: &str) -> TestDb {
+        match kind {
+            Db::Sqlite => TestDb { url: None, drop_sql: None },
+            Db::Postgres => {
+                let nanos = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .expect("clock")
+                    .as_nanos();
+                let db = format!("poseboard_{name}_{}_{nanos}", std::process::id());
+                let admin = admin_url();
+                pg_exec(&admin, &format!("CREATE DATABASE {db}"));
+                let base = admin.rsplit_once('/').map_or(admin.as_str(), |(b, _)| b).to_string();
+                TestDb {
+                    url: Some(format!("{base}/{db}")),
+                    drop_sql: Some((admin, format!("DROP DATABASE IF EXISTS {db} WITH (FORCE)"))),
+                }
+            }
+        }
+    }
+}
+
+impl Drop for TestDb {
+    fn drop(&mut self) {
+        if let Some((admin, sql)) = &self.drop_sql {
+            pg_exec(admin, sql);
+        }
+    }
+}
+
+struct Server {
+    child: Child,
+    base: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `poseboard serve` on port 0 and waits for the line that tells its address.
+fn start(data_dir: &Path, datasets: &Path, db: &TestDb, extra: &[&str]) -> Server {
+    let mut cmd = Command::new(BIN);
+    cmd.args(["serve", "--bind", "127.0.0.1:0", "--lease-secs", "2"])
+        .arg("--data-dir")
+        .arg(data_dir)
+        .arg("--datasets")
+        .arg(datasets)
+        .args(extra)
+        .env("RUST_LOG", "warn")
+        .env_remove("DATABASE_URL")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit());
+    if let Some(url) = &db.url {
+        cmd.env("DATABASE_URL", url);
+    }
+    let mut child = cmd.spawn().expect("poseboard serve starts");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut lines = BufReader::new(stdout).lines();
+    let line = lines
+        .next()
+        .expect("the server prints its address")
+        .expect("readable stdout");
+    let base = line
+        .strip_prefix("poseboard listening on ")
+        .unwrap_or_else(|| panic!("unexpected first line: {line}"))
+        .to_string();
+    // Keep draining stdout so the server never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines {});
+    Server { child, base }
+}
+
+/// A datasets directory holding the reference dataset under the name `synthA`.
+fn reference_datasets(dir: &Path) -> PathBuf {
+    let datasets = dir.join("datasets");
+    std::fs::create_dir_all(&datasets).expect("mkdir");
+    std::os::unix::fs::symlink(
+        fixtures().join("dataset").canonicalize().expect("fixture"),
+        datasets.join("synthA"),
+    )
+    .expect("symlink");
+    datasets
+}
+
+fn client() -> Client {
+    Client::builder().timeout(Duration::from_secs(60)).build().expect("client")
+}
+
+fn upload(base: &str, method: &str, dataset: &str, file: &Path, protocol: Option<&str>) -> reqwest::blocking::Response {
+    let mut form = multipart::Form::new()
+        .text("method", method.to_string())
+        .text("dataset", dataset.to_string())
+        .file("file", file)
+        .expect("result file");
+    if let Some(p) = protocol {
+        form = form.text("protocol", p.to_string());
+    }
+    client()
+        .post(format!("{base}/api/v1/submissions"))
+        .multipart(form)
+        .send()
+        .expect("upload answered")
+}
+
+fn get_json(url: &str) -> Value {
+    let r = client().get(url).send().expect("answered");
+    assert!(r.status().is_success(), "{url}: {}", r.status());
+    r.json().expect("JSON")
+}
+
+fn wait_done(base: &str, id: i64, limit: Duration) -> Value {
+    let start = Instant::now();
+    loop {
+        let s = get_json(&format!("{base}/api/v1/submissions/{id}"));
+        match s["status"].as_str() {
+            Some("done") => return s,
+            Some("failed") => panic!("submission {id} failed: {}", s["error"]),
+            _ => {}
+        }
+        assert!(start.elapsed() < limit, "submission {id} not done in {limit:?}: {s}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// What `poseboard eval` reports for a file.
+fn cli_report(dataset: &Path, results: &Path, protocol: &str) -> Value {
+    let out = tempfile::NamedTempFile::new().expect("tmp");
+    let status = Command::new(BIN)
+        .args(["eval", "--protocol", protocol, "--threads", "1"])
+        .arg("--dataset")
+        .arg(dataset)
+        .arg("--results")
+        .arg(results)
+        .arg("--out")
+        .arg(out.path())
+        .stdout(Stdio::null())
+        .status()
+        .expect("poseboard eval runs");
+    assert!(status.success());
+    serde_json::from_str(&std::fs::read_to_string(out.path()).expect("report")).expect("json")
+}
+
+fn upload_evaluate_and_rank(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "rank");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let base = server.base.clone();
+    let file = fixtures().join("results/noisemedium_synthA-test.csv");
+
+    let r = upload(&base, "noisy-net", "synthA", &file, None);
+    assert_eq!(r.status(), 202, "{kind:?}");
+    let body: Value = r.json().expect("json");
+    let id = body["id"].as_i64().expect("id");
+    assert_eq!(body["preflight"]["targets"], 28);
+    let done = wait_done(&base, id, Duration::from_secs(60));
+
+    let bop19 = cli_report(&datasets.join("synthA"), &file, "bop19");
+    let eccv18 = cli_report(&datasets.join("synthA"), &file, "eccv18");
+    for key in ["bop19_average_recall", "bop19_average_recall_vsd", "bop19_average_recall_mssd", "bop19_average_recall_mspd"] {
+        assert_eq!(done["scores"]["bop19"][key], bop19[key], "{kind:?} {key}");
+    }
+    for key in ["recall", "obj_recalls", "scene_recalls", "mean_obj_recall", "targets_count", "tp_count"] {
+        assert_eq!(done["scores"]["eccv18"][key], eccv18[key], "{kind:?} {key}");
+    }
+
+    let board = get_json(&format!("{base}/api/v1/leaderboards/bop19?dataset=synthA"));
+    let row = &board["rows"][0];
+    assert_eq!(row["method"], "noisy-net");
+    assert_eq!(row["scores"]["synthA"]["score"], bop19["bop19_average_recall"]);
+    for (obj, ar) in bop19["obj_average_recalls"].as_object().expect("objects") {
+        assert_eq!(&row["objects"][obj], ar, "object {obj}");
+    }
+    let board = get_json(&format!("{base}/api/v1/leaderboards/eccv18"));
+    assert_eq!(board["rows"][0]["scores"]["synthA"]["score"], eccv18["recall"]);
+
+    let html = client()
+        .get(format!("{base}/leaderboards/bop19?dataset=synthA"))
+        .send()
+        .expect("page")
+        .text()
+        .expect("html");
+    let shown = format!("{:.1}", bop19["bop19_average_recall"].as_f64().expect("ar") * 100.0);
+    assert!(html.contains("noisy-net") && html.contains(&shown), "{kind:?}: {shown} not on the page");
+    let page = client().get(format!("{base}/submissions/{id}")).send().expect("page").text().expect("html");
+    assert!(page.contains("<svg"), "curves are drawn");
+
+    // The same file again for the same method is recognised.
+    let again = upload(&base, "noisy-net", "synthA", &file, None);
+    assert_eq!(again.status(), 200);
+    let again: Value = again.json().expect("json");
+    assert_eq!(again["duplicate"], true);
+    assert_eq!(again["id"], id);
+}
+
+#[test]
+fn upload_evaluate_and_rank_on_sqlite() {
+    upload_evaluate_and_rank(Db::Sqlite);
+}
+
+#[test]
+fn upload_evaluate_and_rank_on_postgres() {
+    upload_evaluate_and_rank(Db::Postgres);
+}
+
+fn malformed_upload_leaves_nothing(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "bad");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    for (file, needle) in [
+        ("wrong-columns_synthA-test.csv", "line 6 has 6 fields, expected 7"),
+        ("not-rotation_synthA-test.csv", "R on line 5 is not a rotation matrix"),
+        ("nan_synthA-test.csv", "non-finite number on line 4"),
+    ] {
+        let r = upload(&server.base, "broken", "synthA", &fixtures().join("results/malformed").join(file), None);
+        assert_eq!(r.status(), 422, "{kind:?} {file}");
+        let body: Value = r.json().expect("json");
+        let problems = body["problems"].as_array().expect("problems");
+        assert!(
+            problems.iter().any(|p| p["message"].as_str().is_some_and(|m| m.contains(needle))),
+            "{kind:?} {file}: {body}"
+        );
+        assert!(problems.iter().all(|p| p["line"].as_u64().is_some()));
+    }
+    // The browser form shows the problems too.
+    let form = multipart::Form::new()
+        .text("method", "broken")
+        .text("dataset", "synthA")
+        .file("file", fixtures().join("results/malformed/wrong-columns_synthA-test.csv"))
+        .expect("file");
+    let r = client().post(format!("{}/submit", server.base)).multipart(form).send().expect("form");
+    assert_eq!(r.status(), 422);
+    assert!(r.text().expect("html").contains("line 6 has 6 fields, expected 7"));
+
+    let listed = get_json(&format!("{}/api/v1/submissions", server.base));
+    assert_eq!(listed["submissions"].as_array().map(Vec::len), Some(0), "{kind:?}: no submission row");
+    let stored: Vec<_> = std::fs::read_dir(data.join("submissions")).expect("dir").collect();
+    assert!(stored.is_empty(), "{kind:?}: no stored file: {stored:?}");
+
+    // Unknown datasets and missing fields are refused with a clear 4xx.
+    let r = upload(&server.base, "x", "nope", &fixtures().join("results/gtexact_synthA-test.csv"), None);
+    assert_eq!(r.status(), 400);
+    assert!(r.text().expect("body").contains("unknown dataset"));
+}
+
+#[test]
+fn malformed_upload_leaves_nothing_on_sqlite() {
+    malformed_upload_leaves_nothing(Db::Sqlite);
+}
+
+#[test]
+fn malformed_upload_leaves_nothing_on_postgres() {
+    malformed_upload_leaves_nothing(Db::Postgres);
+}
+
+#[test]
+fn an_upload_over_the_size_bound_is_refused_with_413() {
+    use std::io::{Read, Write};
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(Db::Sqlite, "big");
+    let server = start(&dir.path().join("data"), &datasets, &db, &["--max-upload-mb", "1"]);
+    // Announce a 50 MiB body and send none of it: the answer must come without the body.
+    let addr = server.base.trim_start_matches("http://");
+    let mut stream = std::net::TcpStream::connect(addr).expect("connect");
+    stream.set_read_timeout(Some(Duration::from_secs(10))).expect("timeout");
+    write!(
+        stream,
+        "POST /api/v1/submissions HTTP/1.1\r\nHost: {addr}\r\nContent-Type: multipart/form-data; boundary=x\r\nContent-Length: {}\r\n\r\n",
+        50u64 << 20
+    )
+    .expect("headers sent");
+    let mut answer = [0u8; 64];
+    let n = stream.read(&mut answer).expect("an answer before the body");
+    let head = String::from_utf8_lossy(&answer[..n]);
+    assert!(head.starts_with("HTTP/1.1 413"), "{head}");
+
+    // A streamed (chunked) upload that grows past the bound is cut off with 413 as well.
+    let big = dir.path().join("big.csv");
+    let csv = std::fs::read_to_string(fixtures().join("results/gtexact_synthA-test.csv")).expect("csv");
+    let mut text = String::new();
+    while text.len() < 3 << 20 {
+        text.push_str(&csv);
+    }
+    std::fs::write(&big, text).expect("write");
+    let file = std::fs::File::open(&big).expect("open");
+    let part = multipart::Part::reader(file).file_name("big.csv");
+    let form = multipart::Form::new()
+        .text("method", "huge")
+        .text("dataset", "synthA")
+        .part("file", part);
+    match client().post(format!("{}/api/v1/submissions", server.base)).multipart(form).send() {
+        Ok(r) => assert_eq!(r.status(), 413),
+        // The server may close the connection before the client finishes sending.
+        Err(e) => assert!(e.is_body() || e.is_request(), "{e}"),
+    }
+    let stored: Vec<_> = std::fs::read_dir(dir.path().join("data/submissions")).expect("dir").collect();
+    assert!(stored.is_empty(), "nothing kept: {stored:?}");
+}
+
+/// Kills the server with SIGKILL while it evaluates, starts it again, and checks that the
+/// job finishes with the scores `poseboard eval` gives, once.
+fn crash_and_resume(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = dir.path().join("datasets");
+    // A dataset large enough that one evaluation takes a few seconds on one thread.
+    let status = Command::new(BIN)
+        .args(["dataset", "synth", "--scenes", "12", "--images-per-scene", "10"])
+        .arg(datasets.join("synthbig"))
+        .stdout(Stdio::null())
+        .status()
+        .expect("synth runs");
+    assert!(status.success());
+    let results_dir = dir.path().join("results");
+    let status = Command::new(BIN)
+        .args(["dataset", "demo-results"])
+        .arg(datasets.join("synthbig"))
+        .arg(&results_dir)
+        .stdout(Stdio::null())
+        .status()
+        .expect("demo-results runs");
+    assert!(status.success());
+    let file = std::fs::read_dir(&results_dir)
+        .expect("results")
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .find(|p| p.to_string_lossy().contains("noisy"))
+        .expect("a noisy demo result");
+
+    let db = TestDb::new(kind, "crash");
+    let data = dir.path().join("data");
+    let args = ["--eval-threads", "1"];
+    let id;
+    {
+        let server = start(&data, &datasets, &db, &args);
+        let r = upload(&server.base, "crashy", "synthbig", &file, None);
+        assert_eq!(r.status(), 202);
+        id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+        // Wait until the job runs and has made progress, then kill the server hard.
+        let start_wait = Instant::now();
+        loop {
+            let s = get_json(&format!("{}/api/v1/submissions/{id}", server.base));
+            if s["status"] == "running" && s["progress"].as_f64().unwrap_or(0.0) > 0.0 {
+                break;
+            }
+            assert_ne!(s["status"], "done", "{kind:?}: finished before it could be killed; make the dataset larger");
+            assert!(start_wait.elapsed() < Duration::from_secs(60), "{kind:?}: never ran: {s}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let mut server = server;
+        server.child.kill().expect("SIGKILL");
+        server.child.wait().expect("reaped");
+    }
+    let server = start(&data, &datasets, &db, &args);
+    let done = wait_done(&server.base, id, Duration::from_secs(120));
+    assert_eq!(done["attempts"], 2, "{kind:?}: taken up again exactly once");
+    let want = cli_report(&datasets.join("synthbig"), &file, "bop19");
+    assert_eq!(done["scores"]["bop19"]["bop19_average_recall"], want["bop19_average_recall"]);
+    let board = get_json(&format!("{}/api/v1/leaderboards/bop19?dataset=synthbig", server.base));
+    assert_eq!(board["rows"].as_array().map(Vec::len), Some(1), "one score set");
+    let listed = get_json(&format!("{}/api/v1/submissions", server.base));
+    assert_eq!(listed["submissions"].as_array().map(Vec::len), Some(1), "no submission lost or duplicated");
+}
+
+#[test]
+fn crash_and_resume_on_sqlite() {
+    crash_and_resume(Db::Sqlite);
+}
+
+#[test]
+fn crash_and_resume_on_postgres() {
+    crash_and_resume(Db::Postgres);
+}
