@@ -76,7 +76,9 @@ impl App {
                     tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered");
                     self.datasets.lock().await.insert(id, Arc::new(ds));
                 }
-                Err(e) => tracing::error!(folder = %folder.display(), error = %e, "dataset skipped"),
+                Err(e) => {
+                    tracing::error!(folder = %folder.display(), error = %e, "dataset skipped")
+                }
             }
         }
         Ok(())

@@ -48,13 +48,33 @@ pub fn charts(protocol: ProtocolName, points: &[(String, f64, f64, f64)]) -> Vec
     let mut out = Vec::new();
     let curves: &[(&str, &str, &str)] = match protocol {
         ProtocolName::Eccv18 => &[
-            ("recall_vs_theta", "Recall vs threshold of correctness", "theta"),
-            ("recall_vs_visib", "Recall vs visible fraction of the target", "visible fraction"),
+            (
+                "recall_vs_theta",
+                "Recall vs threshold of correctness",
+                "theta",
+            ),
+            (
+                "recall_vs_visib",
+                "Recall vs visible fraction of the target",
+                "visible fraction",
+            ),
         ],
         ProtocolName::Bop19 => &[
-            ("recall_vs_th_vsd", "VSD recall vs threshold (mean over taus)", "theta"),
-            ("recall_vs_th_mssd", "MSSD recall vs threshold", "threshold (x diameter)"),
-            ("recall_vs_th_mspd", "MSPD recall vs threshold", "threshold (px)"),
+            (
+                "recall_vs_th_vsd",
+                "VSD recall vs threshold (mean over taus)",
+                "theta",
+            ),
+            (
+                "recall_vs_th_mssd",
+                "MSSD recall vs threshold",
+                "threshold (x diameter)",
+            ),
+            (
+                "recall_vs_th_mspd",
+                "MSPD recall vs threshold",
+                "threshold (px)",
+            ),
         ],
     };
     for &(curve, title, x_label) in curves {
@@ -77,10 +97,20 @@ pub fn charts(protocol: ProtocolName, points: &[(String, f64, f64, f64)]) -> Vec
                     .iter()
                     .filter(|p| p.1 == key)
                     // Visibility bins are plotted at their centres.
-                    .map(|p| (if curve == "recall_vs_visib" { p.2 + 0.05 } else { p.2 }, p.3))
+                    .map(|p| {
+                        (
+                            if curve == "recall_vs_visib" {
+                                p.2 + 0.05
+                            } else {
+                                p.2
+                            },
+                            p.3,
+                        )
+                    })
                     .collect();
                 xy.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let dots: Vec<(f64, f64)> = xy.iter().map(|&(x, y)| (sx(x, x_max), sy(y))).collect();
+                let dots: Vec<(f64, f64)> =
+                    xy.iter().map(|&(x, y)| (sx(x, x_max), sy(y))).collect();
                 Series {
                     label: if curve == "recall_vs_theta" {
                         format!("tau = {key} mm")
@@ -144,7 +174,10 @@ mod tests {
         assert_eq!(charts.len(), 1);
         let c = &charts[0];
         assert_eq!(c.series.len(), 2);
-        assert_eq!(c.series[0].points, format!("{LEFT:.1},{BOTTOM:.1} {RIGHT:.1},{TOP:.1}"));
+        assert_eq!(
+            c.series[0].points,
+            format!("{LEFT:.1},{BOTTOM:.1} {RIGHT:.1},{TOP:.1}")
+        );
         assert_eq!(c.series[1].label, "tau = 80 mm");
         assert_eq!(c.y_ticks.last().map(|t| t.label.as_str()), Some("1"));
     }

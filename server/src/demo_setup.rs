@@ -38,7 +38,8 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
     let out = tempfile::tempdir_in(&app.config.data_dir)?;
     let dataset_dir = std::path::PathBuf::from(&row.path);
     let out_dir = out.path().to_path_buf();
-    let demos = tokio::task::spawn_blocking(move || write_demo_results(&dataset_dir, &out_dir, 11)).await??;
+    let demos = tokio::task::spawn_blocking(move || write_demo_results(&dataset_dir, &out_dir, 11))
+        .await??;
     for demo in demos {
         let bytes = std::fs::read(&demo.path)?;
         let tmp = tempfile::Builder::new()

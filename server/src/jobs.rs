@@ -47,7 +47,11 @@ async fn worker_loop(app: AppState, worker: String) {
         let notified = app.wake.notified();
         tokio::pin!(notified);
         notified.as_mut().enable();
-        match app.store.claim(&worker, app.config.lease_ms(), MAX_ATTEMPTS).await {
+        match app
+            .store
+            .claim(&worker, app.config.lease_ms(), MAX_ATTEMPTS)
+            .await
+        {
             Ok(Some(job)) => run_job(&app, &worker, job).await,
             Ok(None) => {
                 tokio::select! {
@@ -81,8 +85,15 @@ impl Progress for Counter {
 impl Counter {
     fn fraction(&self, protocols: usize, started: usize) -> f64 {
         // Later protocols have not announced their totals yet: count each protocol equally.
-        let (done, total) = (self.done.load(Ordering::Relaxed), self.total.load(Ordering::Relaxed));
-        let current = if total == 0 { 0.0 } else { done as f64 / total as f64 };
+        let (done, total) = (
+            self.done.load(Ordering::Relaxed),
+            self.total.load(Ordering::Relaxed),
+        );
+        let current = if total == 0 {
+            0.0
+        } else {
+            done as f64 / total as f64
+        };
         let finished_share = started.saturating_sub(1) as f64 / protocols.max(1) as f64;
         (finished_share + current / protocols.max(1) as f64).clamp(0.0, 0.99)
     }
@@ -113,14 +124,21 @@ enum JobError {
     Service(String),
 }
 
-async fn evaluate_job(app: &AppState, worker: &str, job: &SubmissionRow) -> Result<Vec<Report>, JobError> {
+async fn evaluate_job(
+    app: &AppState,
+    worker: &str,
+    job: &SubmissionRow,
+) -> Result<Vec<Report>, JobError> {
     let row = app
         .store
         .dataset(job.dataset_id)
         .await
         .map_err(|e| JobError::Service(e.to_string()))?
         .ok_or_else(|| JobError::Service("the dataset is no longer served".into()))?;
-    let dataset = app.dataset(&row).await.map_err(|e| JobError::Service(e.to_string()))?;
+    let dataset = app
+        .dataset(&row)
+        .await
+        .map_err(|e| JobError::Service(e.to_string()))?;
     let path = app.stored_file(&job.file_sha256);
     let protocols: Vec<ProtocolName> = job.protocols.clone();
 
@@ -133,15 +151,25 @@ async fn evaluate_job(app: &AppState, worker: &str, job: &SubmissionRow) -> Resu
 
     // Heartbeat: renew the lease and publish progress until the evaluation ends.
     let beat = {
-        let (app, worker, counter, started, cancel) =
-            (app.clone(), worker.to_string(), counter.clone(), started.clone(), cancel.clone());
+        let (app, worker, counter, started, cancel) = (
+            app.clone(),
+            worker.to_string(),
+            counter.clone(),
+            started.clone(),
+            cancel.clone(),
+        );
         let (id, n) = (job.id, protocols.len());
         tokio::spawn(async move {
-            let every = Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
+            let every =
+                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
             loop {
                 tokio::time::sleep(every).await;
                 let progress = counter.fraction(n, started.load(Ordering::Relaxed) as usize);
-                match app.store.heartbeat(id, &worker, app.config.lease_ms(), progress).await {
+                match app
+                    .store
+                    .heartbeat(id, &worker, app.config.lease_ms(), progress)
+                    .await
+                {
                     Ok(true) => {}
                     Ok(false) => {
                         // Someone else owns the job now: stop wasting the CPU on it.
@@ -167,7 +195,9 @@ async fn evaluate_job(app: &AppState, worker: &str, job: &SubmissionRow) -> Resu
                 let protocol = Protocol::named(name);
                 let report = evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
                     .map_err(|e| match e {
-                        evaluator::Error::Cancelled => JobError::Service("evaluation taken over by another worker".into()),
+                        evaluator::Error::Cancelled => {
+                            JobError::Service("evaluation taken over by another worker".into())
+                        }
                         other => JobError::Service(other.to_string()),
                     })?
                     .report;

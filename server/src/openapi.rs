@@ -3,7 +3,8 @@
 use serde_json::{Value, json};
 
 pub fn document() -> Value {
-    let id_param = json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
+    let id_param =
+        json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
     json!({
         "openapi": "3.1.0",
         "info": {

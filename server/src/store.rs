@@ -40,7 +40,10 @@ pub fn now_ms() -> i64 {
 
 /// The default database: a SQLite file in the data directory.
 pub fn sqlite_url(data_dir: &Path) -> String {
-    format!("sqlite://{}?mode=rwc", data_dir.join("poseboard.db").display())
+    format!(
+        "sqlite://{}?mode=rwc",
+        data_dir.join("poseboard.db").display()
+    )
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -172,7 +175,9 @@ fn protocols_to_text(p: &[ProtocolName]) -> String {
 }
 
 fn protocols_from_text(s: &str) -> Vec<ProtocolName> {
-    s.split(',').filter_map(|p| ProtocolName::from_str(p).ok()).collect()
+    s.split(',')
+        .filter_map(|p| ProtocolName::from_str(p).ok())
+        .collect()
 }
 
 const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, d.name AS dataset, \
@@ -265,11 +270,8 @@ impl Store {
                 "unsupported database URL `{url}`: use sqlite://... or postgres://..."
             )));
         };
-        let mut options = AnyPoolOptions::new().max_connections(if backend == Backend::Sqlite {
-            4
-        } else {
-            10
-        });
+        let mut options =
+            AnyPoolOptions::new().max_connections(if backend == Backend::Sqlite { 4 } else { 10 });
         if backend == Backend::Sqlite {
             options = options.after_connect(|conn, _| {
                 Box::pin(async move {
@@ -298,41 +300,27 @@ impl Store {
             Backend::Sqlite => &SQLITE_MIGRATIONS,
             Backend::Postgres => &POSTGRES_MIGRATIONS,
         };
-        migrator.run(&self.pool).await.map_err(|e| AppError::Internal(e.to_string()))
+        migrator
+            .run(&self.pool)
+            .await
+            .map_err(|e| AppError::Internal(e.to_string()))
     }
 
     // ---- datasets --------------------------------------------------------------------------
 
-    /// Registers a dataset, or refreshes its description if one of that name exists.
+    /// Registers a dataset, or refreshes its description (and un-retires it) if one of that
+    /// name exists.
     pub async fn upsert_dataset(&self, d: &DatasetRow) -> AppResult<i64> {
-        let existing = sqlx::query("SELECT id FROM datasets WHERE name = $1")
-            .bind(&d.name)
-            .fetch_optional(&self.pool)
-            .await?;
-        if let Some(row) = existing {
-            let id: i64 = row.try_get("id")?;
-            sqlx::query(
-                "UPDATE datasets SET path = $1, objects_count = $2, scenes_count = $3, \
-                 images_count = $4, targets_count = $5, instances_count = $6, image_width = $7, \
-                 image_height = $8, retired = 0 WHERE id = $9",
-            )
-            .bind(&d.path)
-            .bind(d.objects_count)
-            .bind(d.scenes_count)
-            .bind(d.images_count)
-            .bind(d.targets_count)
-            .bind(d.instances_count)
-            .bind(d.image_width)
-            .bind(d.image_height)
-            .bind(id)
-            .execute(&self.pool)
-            .await?;
-            return Ok(id);
-        }
         let row = sqlx::query(
             "INSERT INTO datasets (name, path, objects_count, scenes_count, images_count, \
              targets_count, instances_count, image_width, image_height, added_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) RETURNING id",
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) \
+             ON CONFLICT (name) DO UPDATE SET path = excluded.path, \
+             objects_count = excluded.objects_count, scenes_count = excluded.scenes_count, \
+             images_count = excluded.images_count, targets_count = excluded.targets_count, \
+             instances_count = excluded.instances_count, image_width = excluded.image_width, \
+             image_height = excluded.image_height, retired = 0 \
+             RETURNING id",
         )
         .bind(&d.name)
         .bind(&d.path)
@@ -505,7 +493,8 @@ impl Store {
 
     /// Public submissions, newest first.
     pub async fn recent_submissions(&self, limit: i64) -> AppResult<Vec<SubmissionRow>> {
-        let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 ORDER BY s.id DESC LIMIT $1");
+        let sql =
+            format!("SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 ORDER BY s.id DESC LIMIT $1");
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(limit)
             .fetch_all(&self.pool)
@@ -582,7 +571,13 @@ impl Store {
     }
 
     /// Extends the lease and records progress; false when the job is no longer this worker's.
-    pub async fn heartbeat(&self, id: i64, worker: &str, lease_ms: i64, progress: f64) -> AppResult<bool> {
+    pub async fn heartbeat(
+        &self,
+        id: i64,
+        worker: &str,
+        lease_ms: i64,
+        progress: f64,
+    ) -> AppResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET lease_until = $1, progress = $2 \
              WHERE id = $3 AND worker = $4 AND status = 'running'",
@@ -630,7 +625,8 @@ impl Store {
                 ProtocolName::Bop19 => (report.bop19_average_time_per_image, None),
             };
             let loc = report.localization.as_ref();
-            let json = serde_json::to_string(report).map_err(|e| AppError::Internal(e.to_string()))?;
+            let json =
+                serde_json::to_string(report).map_err(|e| AppError::Internal(e.to_string()))?;
             let row = sqlx::query(
                 "INSERT INTO scores (submission_id, protocol, score, recall, ar_vsd, ar_mssd, \
                  ar_mspd, time_avg, targets_count, tp_count, estimates_evaluated, estimates_ignored, \
@@ -659,23 +655,30 @@ impl Store {
             let score_id: i64 = row.try_get("id")?;
             let (objects, scenes) = match (report.protocol, loc) {
                 (ProtocolName::Eccv18, Some(l)) => (l.obj_recalls.clone(), l.scene_recalls.clone()),
-                _ => (report.obj_average_recalls.clone(), report.scene_average_recalls.clone()),
+                _ => (
+                    report.obj_average_recalls.clone(),
+                    report.scene_average_recalls.clone(),
+                ),
             };
             for (obj, value) in objects {
-                sqlx::query("INSERT INTO object_scores (score_id, obj_id, value) VALUES ($1, $2, $3)")
-                    .bind(score_id)
-                    .bind(obj as i64)
-                    .bind(value)
-                    .execute(&mut *tx)
-                    .await?;
+                sqlx::query(
+                    "INSERT INTO object_scores (score_id, obj_id, value) VALUES ($1, $2, $3)",
+                )
+                .bind(score_id)
+                .bind(obj as i64)
+                .bind(value)
+                .execute(&mut *tx)
+                .await?;
             }
             for (scene, value) in scenes {
-                sqlx::query("INSERT INTO scene_scores (score_id, scene_id, value) VALUES ($1, $2, $3)")
-                    .bind(score_id)
-                    .bind(scene as i64)
-                    .bind(value)
-                    .execute(&mut *tx)
-                    .await?;
+                sqlx::query(
+                    "INSERT INTO scene_scores (score_id, scene_id, value) VALUES ($1, $2, $3)",
+                )
+                .bind(score_id)
+                .bind(scene as i64)
+                .bind(value)
+                .execute(&mut *tx)
+                .await?;
             }
             for (curve, series, x, y) in curve_points(report) {
                 sqlx::query(
@@ -735,7 +738,14 @@ impl Store {
         .fetch_all(&self.pool)
         .await?;
         rows.iter()
-            .map(|r| Ok((r.try_get("curve")?, r.try_get("series")?, r.try_get("x")?, r.try_get("y")?)))
+            .map(|r| {
+                Ok((
+                    r.try_get("curve")?,
+                    r.try_get("series")?,
+                    r.try_get("x")?,
+                    r.try_get("y")?,
+                ))
+            })
             .collect()
     }
 
@@ -766,20 +776,23 @@ impl Store {
         let mut entries = Vec::with_capacity(rows.len());
         for r in &rows {
             let score = score(r)?;
-            let objects = sqlx::query("SELECT obj_id, value FROM object_scores WHERE score_id = $1")
-                .bind(score.id)
-                .fetch_all(&self.pool)
-                .await?
-                .iter()
-                .map(|o| Ok((o.try_get("obj_id")?, o.try_get("value")?)))
-                .collect::<Result<BTreeMap<i64, f64>, sqlx::Error>>()?;
+            let objects =
+                sqlx::query("SELECT obj_id, value FROM object_scores WHERE score_id = $1")
+                    .bind(score.id)
+                    .fetch_all(&self.pool)
+                    .await?
+                    .iter()
+                    .map(|o| Ok((o.try_get("obj_id")?, o.try_get("value")?)))
+                    .collect::<Result<BTreeMap<i64, f64>, sqlx::Error>>()?;
             entries.push(BoardEntry {
                 method_id: r.try_get("method_id")?,
                 method: r.try_get("method")?,
                 dataset_id: r.try_get("dataset_id")?,
                 dataset: r.try_get("dataset")?,
                 submission_id: score.submission_id,
-                submitted_at: r.try_get::<Option<i64>, _>("finished_at")?.unwrap_or_default(),
+                submitted_at: r
+                    .try_get::<Option<i64>, _>("finished_at")?
+                    .unwrap_or_default(),
                 score,
                 object_scores: objects,
             });

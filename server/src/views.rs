@@ -127,7 +127,11 @@ pub async fn leaderboard(
     if sort == "method" {
         rows.sort_by_key(|r| r.method.to_lowercase());
     } else {
-        rows.sort_by(|a, b| key(b).total_cmp(&key(a)).then_with(|| a.method.cmp(&b.method)));
+        rows.sort_by(|a, b| {
+            key(b)
+                .total_cmp(&key(a))
+                .then_with(|| a.method.cmp(&b.method))
+        });
     }
     for (i, row) in rows.iter_mut().enumerate() {
         row.rank = i + 1;
@@ -191,7 +195,8 @@ pub async fn submission(app: &AppState, id: i64) -> AppResult<SubmissionView> {
         charts.extend(crate::chart::charts(score.protocol, &points));
     }
     Ok(SubmissionView {
-        preflight: serde_json::from_str(&submission.preflight_json).unwrap_or(serde_json::Value::Null),
+        preflight: serde_json::from_str(&submission.preflight_json)
+            .unwrap_or(serde_json::Value::Null),
         submission,
         queue_position,
         scores,

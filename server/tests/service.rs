@@ -36,10 +36,15 @@ fn admin_url() -> String {
 }
 
 fn pg_exec(url: &str, sql: &str) {
-    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().expect("runtime");
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
     rt.block_on(async {
         use sqlx::Connection;
-        let mut conn = sqlx::PgConnection::connect(url).await.expect("PostgreSQL is reachable");
+        let mut conn = sqlx::PgConnection::connect(url)
+            .await
+            .expect("PostgreSQL is reachable");
         sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
             .execute(&mut conn)
             .await
@@ -50,7 +55,10 @@ fn pg_exec(url: &str, sql: &str) {
 impl TestDb {
     fn new(kind: Db, name: &str) -> TestDb {
         match kind {
-            Db::Sqlite => TestDb { url: None, drop_sql: None },
+            Db::Sqlite => TestDb {
+                url: None,
+                drop_sql: None,
+            },
             Db::Postgres => {
                 let nanos = std::time::SystemTime::now()
                     .duration_since(std::time::UNIX_EPOCH)
@@ -59,7 +67,10 @@ impl TestDb {
                 let db = format!("poseboard_{name}_{}_{nanos}", std::process::id());
                 let admin = admin_url();
                 pg_exec(&admin, &format!("CREATE DATABASE {db}"));
-                let base = admin.rsplit_once('/').map_or(admin.as_str(), |(b, _)| b).to_string();
+                let base = admin
+                    .rsplit_once('/')
+                    .map_or(admin.as_str(), |(b, _)| b)
+                    .to_string();
                 TestDb {
                     url: Some(format!("{base}/{db}")),
                     drop_sql: Some((admin, format!("DROP DATABASE IF EXISTS {db} WITH (FORCE)"))),
@@ -134,10 +145,19 @@ fn reference_datasets(dir: &Path) -> PathBuf {
 }
 
 fn client() -> Client {
-    Client::builder().timeout(Duration::from_secs(60)).build().expect("client")
+    Client::builder()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .expect("client")
 }
 
-fn upload(base: &str, method: &str, dataset: &str, file: &Path, protocol: Option<&str>) -> reqwest::blocking::Response {
+fn upload(
+    base: &str,
+    method: &str,
+    dataset: &str,
+    file: &Path,
+    protocol: Option<&str>,
+) -> reqwest::blocking::Response {
     let mut form = multipart::Form::new()
         .text("method", method.to_string())
         .text("dataset", dataset.to_string())
@@ -168,7 +188,10 @@ fn wait_done(base: &str, id: i64, limit: Duration) -> Value {
             Some("failed") => panic!("submission {id} failed: {}", s["error"]),
             _ => {}
         }
-        assert!(start.elapsed() < limit, "submission {id} not done in {limit:?}: {s}");
+        assert!(
+            start.elapsed() < limit,
+            "submission {id} not done in {limit:?}: {s}"
+        );
         std::thread::sleep(Duration::from_millis(100));
     }
 }
@@ -208,22 +231,40 @@ fn upload_evaluate_and_rank(kind: Db) {
 
     let bop19 = cli_report(&datasets.join("synthA"), &file, "bop19");
     let eccv18 = cli_report(&datasets.join("synthA"), &file, "eccv18");
-    for key in ["bop19_average_recall", "bop19_average_recall_vsd", "bop19_average_recall_mssd", "bop19_average_recall_mspd"] {
+    for key in [
+        "bop19_average_recall",
+        "bop19_average_recall_vsd",
+        "bop19_average_recall_mssd",
+        "bop19_average_recall_mspd",
+    ] {
         assert_eq!(done["scores"]["bop19"][key], bop19[key], "{kind:?} {key}");
     }
-    for key in ["recall", "obj_recalls", "scene_recalls", "mean_obj_recall", "targets_count", "tp_count"] {
+    for key in [
+        "recall",
+        "obj_recalls",
+        "scene_recalls",
+        "mean_obj_recall",
+        "targets_count",
+        "tp_count",
+    ] {
         assert_eq!(done["scores"]["eccv18"][key], eccv18[key], "{kind:?} {key}");
     }
 
     let board = get_json(&format!("{base}/api/v1/leaderboards/bop19?dataset=synthA"));
     let row = &board["rows"][0];
     assert_eq!(row["method"], "noisy-net");
-    assert_eq!(row["scores"]["synthA"]["score"], bop19["bop19_average_recall"]);
+    assert_eq!(
+        row["scores"]["synthA"]["score"],
+        bop19["bop19_average_recall"]
+    );
     for (obj, ar) in bop19["obj_average_recalls"].as_object().expect("objects") {
         assert_eq!(&row["objects"][obj], ar, "object {obj}");
     }
     let board = get_json(&format!("{base}/api/v1/leaderboards/eccv18"));
-    assert_eq!(board["rows"][0]["scores"]["synthA"]["score"], eccv18["recall"]);
+    assert_eq!(
+        board["rows"][0]["scores"]["synthA"]["score"],
+        eccv18["recall"]
+    );
 
     let html = client()
         .get(format!("{base}/leaderboards/bop19?dataset=synthA"))
@@ -231,9 +272,20 @@ fn upload_evaluate_and_rank(kind: Db) {
         .expect("page")
         .text()
         .expect("html");
-    let shown = format!("{:.1}", bop19["bop19_average_recall"].as_f64().expect("ar") * 100.0);
-    assert!(html.contains("noisy-net") && html.contains(&shown), "{kind:?}: {shown} not on the page");
-    let page = client().get(format!("{base}/submissions/{id}")).send().expect("page").text().expect("html");
+    let shown = format!(
+        "{:.1}",
+        bop19["bop19_average_recall"].as_f64().expect("ar") * 100.0
+    );
+    assert!(
+        html.contains("noisy-net") && html.contains(&shown),
+        "{kind:?}: {shown} not on the page"
+    );
+    let page = client()
+        .get(format!("{base}/submissions/{id}"))
+        .send()
+        .expect("page")
+        .text()
+        .expect("html");
     assert!(page.contains("<svg"), "curves are drawn");
 
     // The same file again for the same method is recognised.
@@ -261,16 +313,30 @@ fn malformed_upload_leaves_nothing(kind: Db) {
     let data = dir.path().join("data");
     let server = start(&data, &datasets, &db, &[]);
     for (file, needle) in [
-        ("wrong-columns_synthA-test.csv", "line 6 has 6 fields, expected 7"),
-        ("not-rotation_synthA-test.csv", "R on line 5 is not a rotation matrix"),
+        (
+            "wrong-columns_synthA-test.csv",
+            "line 6 has 6 fields, expected 7",
+        ),
+        (
+            "not-rotation_synthA-test.csv",
+            "R on line 5 is not a rotation matrix",
+        ),
         ("nan_synthA-test.csv", "non-finite number on line 4"),
     ] {
-        let r = upload(&server.base, "broken", "synthA", &fixtures().join("results/malformed").join(file), None);
+        let r = upload(
+            &server.base,
+            "broken",
+            "synthA",
+            &fixtures().join("results/malformed").join(file),
+            None,
+        );
         assert_eq!(r.status(), 422, "{kind:?} {file}");
         let body: Value = r.json().expect("json");
         let problems = body["problems"].as_array().expect("problems");
         assert!(
-            problems.iter().any(|p| p["message"].as_str().is_some_and(|m| m.contains(needle))),
+            problems
+                .iter()
+                .any(|p| p["message"].as_str().is_some_and(|m| m.contains(needle))),
             "{kind:?} {file}: {body}"
         );
         assert!(problems.iter().all(|p| p["line"].as_u64().is_some()));
@@ -279,19 +345,42 @@ fn malformed_upload_leaves_nothing(kind: Db) {
     let form = multipart::Form::new()
         .text("method", "broken")
         .text("dataset", "synthA")
-        .file("file", fixtures().join("results/malformed/wrong-columns_synthA-test.csv"))
+        .file(
+            "file",
+            fixtures().join("results/malformed/wrong-columns_synthA-test.csv"),
+        )
         .expect("file");
-    let r = client().post(format!("{}/submit", server.base)).multipart(form).send().expect("form");
+    let r = client()
+        .post(format!("{}/submit", server.base))
+        .multipart(form)
+        .send()
+        .expect("form");
     assert_eq!(r.status(), 422);
-    assert!(r.text().expect("html").contains("line 6 has 6 fields, expected 7"));
+    assert!(
+        r.text()
+            .expect("html")
+            .contains("line 6 has 6 fields, expected 7")
+    );
 
     let listed = get_json(&format!("{}/api/v1/submissions", server.base));
-    assert_eq!(listed["submissions"].as_array().map(Vec::len), Some(0), "{kind:?}: no submission row");
-    let stored: Vec<_> = std::fs::read_dir(data.join("submissions")).expect("dir").collect();
+    assert_eq!(
+        listed["submissions"].as_array().map(Vec::len),
+        Some(0),
+        "{kind:?}: no submission row"
+    );
+    let stored: Vec<_> = std::fs::read_dir(data.join("submissions"))
+        .expect("dir")
+        .collect();
     assert!(stored.is_empty(), "{kind:?}: no stored file: {stored:?}");
 
     // Unknown datasets and missing fields are refused with a clear 4xx.
-    let r = upload(&server.base, "x", "nope", &fixtures().join("results/gtexact_synthA-test.csv"), None);
+    let r = upload(
+        &server.base,
+        "x",
+        "nope",
+        &fixtures().join("results/gtexact_synthA-test.csv"),
+        None,
+    );
     assert_eq!(r.status(), 400);
     assert!(r.text().expect("body").contains("unknown dataset"));
 }
@@ -312,11 +401,18 @@ fn an_upload_over_the_size_bound_is_refused_with_413() {
     let dir = tempfile::tempdir().expect("tmp");
     let datasets = reference_datasets(dir.path());
     let db = TestDb::new(Db::Sqlite, "big");
-    let server = start(&dir.path().join("data"), &datasets, &db, &["--max-upload-mb", "1"]);
+    let server = start(
+        &dir.path().join("data"),
+        &datasets,
+        &db,
+        &["--max-upload-mb", "1"],
+    );
     // Announce a 50 MiB body and send none of it: the answer must come without the body.
     let addr = server.base.trim_start_matches("http://");
     let mut stream = std::net::TcpStream::connect(addr).expect("connect");
-    stream.set_read_timeout(Some(Duration::from_secs(10))).expect("timeout");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
     write!(
         stream,
         "POST /api/v1/submissions HTTP/1.1\r\nHost: {addr}\r\nContent-Type: multipart/form-data; boundary=x\r\nContent-Length: {}\r\n\r\n",
@@ -330,7 +426,8 @@ fn an_upload_over_the_size_bound_is_refused_with_413() {
 
     // A streamed (chunked) upload that grows past the bound is cut off with 413 as well.
     let big = dir.path().join("big.csv");
-    let csv = std::fs::read_to_string(fixtures().join("results/gtexact_synthA-test.csv")).expect("csv");
+    let csv =
+        std::fs::read_to_string(fixtures().join("results/gtexact_synthA-test.csv")).expect("csv");
     let mut text = String::new();
     while text.len() < 3 << 20 {
         text.push_str(&csv);
@@ -342,12 +439,18 @@ fn an_upload_over_the_size_bound_is_refused_with_413() {
         .text("method", "huge")
         .text("dataset", "synthA")
         .part("file", part);
-    match client().post(format!("{}/api/v1/submissions", server.base)).multipart(form).send() {
+    match client()
+        .post(format!("{}/api/v1/submissions", server.base))
+        .multipart(form)
+        .send()
+    {
         Ok(r) => assert_eq!(r.status(), 413),
         // The server may close the connection before the client finishes sending.
         Err(e) => assert!(e.is_body() || e.is_request(), "{e}"),
     }
-    let stored: Vec<_> = std::fs::read_dir(dir.path().join("data/submissions")).expect("dir").collect();
+    let stored: Vec<_> = std::fs::read_dir(dir.path().join("data/submissions"))
+        .expect("dir")
+        .collect();
     assert!(stored.is_empty(), "nothing kept: {stored:?}");
 }
 
@@ -358,7 +461,14 @@ fn crash_and_resume(kind: Db) {
     let datasets = dir.path().join("datasets");
     // A dataset large enough that one evaluation takes a few seconds on one thread.
     let status = Command::new(BIN)
-        .args(["dataset", "synth", "--scenes", "12", "--images-per-scene", "10"])
+        .args([
+            "dataset",
+            "synth",
+            "--scenes",
+            "12",
+            "--images-per-scene",
+            "10",
+        ])
         .arg(datasets.join("synthbig"))
         .stdout(Stdio::null())
         .status()
@@ -396,8 +506,14 @@ fn crash_and_resume(kind: Db) {
             if s["status"] == "running" && s["progress"].as_f64().unwrap_or(0.0) > 0.0 {
                 break;
             }
-            assert_ne!(s["status"], "done", "{kind:?}: finished before it could be killed; make the dataset larger");
-            assert!(start_wait.elapsed() < Duration::from_secs(60), "{kind:?}: never ran: {s}");
+            assert_ne!(
+                s["status"], "done",
+                "{kind:?}: finished before it could be killed; make the dataset larger"
+            );
+            assert!(
+                start_wait.elapsed() < Duration::from_secs(60),
+                "{kind:?}: never ran: {s}"
+            );
             std::thread::sleep(Duration::from_millis(20));
         }
         let mut server = server;
@@ -408,11 +524,25 @@ fn crash_and_resume(kind: Db) {
     let done = wait_done(&server.base, id, Duration::from_secs(120));
     assert_eq!(done["attempts"], 2, "{kind:?}: taken up again exactly once");
     let want = cli_report(&datasets.join("synthbig"), &file, "bop19");
-    assert_eq!(done["scores"]["bop19"]["bop19_average_recall"], want["bop19_average_recall"]);
-    let board = get_json(&format!("{}/api/v1/leaderboards/bop19?dataset=synthbig", server.base));
-    assert_eq!(board["rows"].as_array().map(Vec::len), Some(1), "one score set");
+    assert_eq!(
+        done["scores"]["bop19"]["bop19_average_recall"],
+        want["bop19_average_recall"]
+    );
+    let board = get_json(&format!(
+        "{}/api/v1/leaderboards/bop19?dataset=synthbig",
+        server.base
+    ));
+    assert_eq!(
+        board["rows"].as_array().map(Vec::len),
+        Some(1),
+        "one score set"
+    );
     let listed = get_json(&format!("{}/api/v1/submissions", server.base));
-    assert_eq!(listed["submissions"].as_array().map(Vec::len), Some(1), "no submission lost or duplicated");
+    assert_eq!(
+        listed["submissions"].as_array().map(Vec::len),
+        Some(1),
+        "no submission lost or duplicated"
+    );
 }
 
 #[test]

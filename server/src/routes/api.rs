@@ -40,21 +40,31 @@ async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Valu
     Ok(Json(json!({ "methods": app.store.methods().await? })))
 }
 
-async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<Json<serde_json::Value>> {
+async fn method(
+    State(app): State<AppState>,
+    Path(id): Path<i64>,
+) -> AppResult<Json<serde_json::Value>> {
     let submissions = app.store.submissions_of_method(id).await?;
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
     if submissions.is_empty() {
         // A method with only private submissions is not public.
         return Err(AppError::NotFound);
     }
-    Ok(Json(json!({ "method": method, "submissions": submissions })))
+    Ok(Json(
+        json!({ "method": method, "submissions": submissions }),
+    ))
 }
 
 async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
-    Ok(Json(json!({ "submissions": app.store.recent_submissions(100).await? })))
+    Ok(Json(
+        json!({ "submissions": app.store.recent_submissions(100).await? }),
+    ))
 }
 
-async fn create_submission(State(app): State<AppState>, multipart: Multipart) -> AppResult<Response> {
+async fn create_submission(
+    State(app): State<AppState>,
+    multipart: Multipart,
+) -> AppResult<Response> {
     let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let Accepted {
         submission,
@@ -76,7 +86,10 @@ async fn create_submission(State(app): State<AppState>, multipart: Multipart) ->
     Ok((status, Json(body)).into_response())
 }
 
-async fn submission(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<Json<views::SubmissionView>> {
+async fn submission(
+    State(app): State<AppState>,
+    Path(id): Path<i64>,
+) -> AppResult<Json<views::SubmissionView>> {
     Ok(Json(views::submission(&app, id).await?))
 }
 
@@ -92,7 +105,9 @@ async fn leaderboard(
     Query(q): Query<BoardQuery>,
 ) -> AppResult<Json<views::Leaderboard>> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
-    Ok(Json(views::leaderboard(&app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?))
+    Ok(Json(
+        views::leaderboard(&app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?,
+    ))
 }
 
 /// The OpenAPI description of this API, written by hand: it is small, and a generator would

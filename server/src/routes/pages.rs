@@ -5,11 +5,11 @@ use std::str::FromStr;
 
 use askama::Template;
 use askama_web::WebTemplate;
+use axum::Router;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::get;
-use axum::Router;
 use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
@@ -59,7 +59,8 @@ mod filters {
 
     #[askama::filter_fn]
     pub fn opt_pct(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
-        Ok(v.get().map_or("–".to_string(), |v| format!("{:.1}", v * 100.0)))
+        Ok(v.get()
+            .map_or("–".to_string(), |v| format!("{:.1}", v * 100.0)))
     }
 
     #[askama::filter_fn]
@@ -73,7 +74,11 @@ mod filters {
         let days = secs.div_euclid(86_400);
         let rem = secs.rem_euclid(86_400);
         let (y, m, d) = civil_from_days(days);
-        Ok(format!("{y:04}-{m:02}-{d:02} {:02}:{:02} UTC", rem / 3600, rem % 3600 / 60))
+        Ok(format!(
+            "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
+            rem / 3600,
+            rem % 3600 / 60
+        ))
     }
 
     /// Days since 1970-01-01 to a proleptic Gregorian date (H. Hinnant's algorithm).
@@ -97,7 +102,10 @@ struct LeaderboardPage {
     protocols: [ProtocolName; 2],
 }
 
-async fn home(State(app): State<AppState>, Query(q): Query<BoardQuery>) -> AppResult<LeaderboardPage> {
+async fn home(
+    State(app): State<AppState>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<LeaderboardPage> {
     leaderboard_page(&app, ProtocolName::Bop19, q).await
 }
 
@@ -110,7 +118,11 @@ async fn leaderboard(
     leaderboard_page(&app, protocol, q).await
 }
 
-async fn leaderboard_page(app: &AppState, protocol: ProtocolName, q: BoardQuery) -> AppResult<LeaderboardPage> {
+async fn leaderboard_page(
+    app: &AppState,
+    protocol: ProtocolName,
+    q: BoardQuery,
+) -> AppResult<LeaderboardPage> {
     Ok(LeaderboardPage {
         board: views::leaderboard(app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?,
         protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
@@ -164,7 +176,11 @@ impl SubmissionPage {
     fn objects(v: &serde_json::Value, key: &str) -> Vec<(String, f64)> {
         v.get(key)
             .and_then(|o| o.as_object())
-            .map(|o| o.iter().filter_map(|(k, x)| Some((k.clone(), x.as_f64()?))).collect())
+            .map(|o| {
+                o.iter()
+                    .filter_map(|(k, x)| Some((k.clone(), x.as_f64()?)))
+                    .collect()
+            })
             .unwrap_or_default()
     }
 }
@@ -175,7 +191,11 @@ async fn submission(State(app): State<AppState>, Path(id): Path<i64>) -> AppResu
         .preflight
         .get("warnings")
         .and_then(|w| w.as_array())
-        .map(|w| w.iter().filter_map(|s| s.as_str().map(str::to_string)).collect())
+        .map(|w| {
+            w.iter()
+                .filter_map(|s| s.as_str().map(str::to_string))
+                .collect()
+        })
         .unwrap_or_default();
     Ok(SubmissionPage {
         charts: view.charts.clone(),
@@ -221,7 +241,9 @@ async fn submit(State(app): State<AppState>, multipart: Multipart) -> AppResult<
         ..SubmitPage::default()
     };
     match accept(&app, upload).await {
-        Ok(accepted) => Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response()),
+        Ok(accepted) => {
+            Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response())
+        }
         Err(e) if e.status().is_client_error() => {
             let status = e.status();
             let page = SubmitPage {
@@ -243,7 +265,10 @@ struct ErrorPage {
 }
 
 /// Error responses of page routes become HTML pages (the JSON API keeps its JSON bodies).
-pub async fn html_errors(request: axum::extract::Request, next: axum::middleware::Next) -> Response {
+pub async fn html_errors(
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
     let response = next.run(request).await;
     let status = response.status();
     match response.extensions().get::<ErrorBody>() {

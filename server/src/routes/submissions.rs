@@ -9,9 +9,9 @@ use std::str::FromStr;
 
 use axum::extract::Multipart;
 use axum::extract::multipart::Field;
+use evaluator::Dataset;
 use evaluator::protocol::{NTop, Protocol, ProtocolName};
 use evaluator::results::{self, Results};
-use evaluator::Dataset;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use tokio::io::AsyncWriteExt;
@@ -71,7 +71,11 @@ pub struct Accepted {
 }
 
 /// Reads a multipart upload, streaming the file to a temporary file in the data directory.
-pub async fn read_upload(app: &AppState, mut multipart: Multipart, limit: u64) -> AppResult<Upload> {
+pub async fn read_upload(
+    app: &AppState,
+    mut multipart: Multipart,
+    limit: u64,
+) -> AppResult<Upload> {
     let mut upload = Upload {
         public: true,
         ..Upload::default()
@@ -121,7 +125,8 @@ async fn text(mut field: Field<'_>) -> AppResult<String> {
             )));
         }
     }
-    String::from_utf8(bytes).map_err(|_| AppError::BadRequest("a text field is not valid UTF-8".into()))
+    String::from_utf8(bytes)
+        .map_err(|_| AppError::BadRequest("a text field is not valid UTF-8".into()))
 }
 
 async fn save_file(app: &AppState, mut field: Field<'_>, limit: u64) -> AppResult<UploadedFile> {
@@ -170,9 +175,14 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
         None => vec![ProtocolName::Bop19, ProtocolName::Eccv18],
         Some(p) => vec![ProtocolName::from_str(p).map_err(AppError::BadRequest)?],
     };
-    for (field, url) in [("paper_url", &upload.paper_url), ("code_url", &upload.code_url)] {
+    for (field, url) in [
+        ("paper_url", &upload.paper_url),
+        ("code_url", &upload.code_url),
+    ] {
         if !(url.is_empty() || url.starts_with("https://") || url.starts_with("http://")) {
-            return Err(AppError::BadRequest(format!("field `{field}` must be an http(s) link")));
+            return Err(AppError::BadRequest(format!(
+                "field `{field}` must be an http(s) link"
+            )));
         }
     }
     let file = upload
@@ -223,7 +233,12 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
 
     let method_id = app
         .store
-        .ensure_method(&method, &upload.description, &upload.paper_url, &upload.code_url)
+        .ensure_method(
+            &method,
+            &upload.description,
+            &upload.paper_url,
+            &upload.code_url,
+        )
         .await?;
     if let Some(existing) = app
         .store
@@ -240,8 +255,8 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
 
     let mut preflight = preflight(&dataset, &results, &protocols);
     let ahead = app.store.estimates_ahead(i64::MAX).await?;
-    preflight.estimated_seconds = (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64)
-        * SECONDS_PER_ESTIMATE;
+    preflight.estimated_seconds =
+        (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64) * SECONDS_PER_ESTIMATE;
     preflight.queue_position = app.store.queue_position(i64::MAX).await?;
 
     let stored = app.stored_file(&file.sha256);
