@@ -53,6 +53,9 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
             description: demo.description.clone(),
             paper_url: String::new(),
             code_url: String::new(),
+            training_data: "synthetic".to_string(),
+            modality: "rgb-d".to_string(),
+            hardware: "demo data: times are made up".to_string(),
             public: true,
             file: Some(UploadedFile {
                 name: demo

@@ -30,6 +30,9 @@ pub fn document() -> Value {
                             "description": { "type": "string" },
                             "paper_url": { "type": "string" },
                             "code_url": { "type": "string" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
                             "visibility": { "type": "string", "enum": ["public", "private"] },
                             "file": { "type": "string", "format": "binary" }
                         } } } } },
@@ -48,7 +51,9 @@ pub fn document() -> Value {
                 "parameters": [
                     { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
                     { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
-                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" }
+                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
+                    { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
+                    { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
                 ],
                 "responses": { "200": { "description": "{protocol, parameters, datasets, rows}" }, "404": { "description": "unknown protocol or dataset" } } } },
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }

@@ -69,7 +69,21 @@ pub struct MethodRow {
     pub description: String,
     pub paper_url: String,
     pub code_url: String,
+    /// `synthetic`, `real` or `both` (empty: not given).
+    pub training_data: String,
+    /// `rgb`, `depth` or `rgb-d` (empty: not given).
+    pub modality: String,
     pub created_at: i64,
+}
+
+/// What a submitter says about their method; empty fields leave stored values as they are.
+#[derive(Clone, Debug, Default)]
+pub struct MethodMeta {
+    pub description: String,
+    pub paper_url: String,
+    pub code_url: String,
+    pub training_data: String,
+    pub modality: String,
 }
 
 /// Lifecycle of a submission.
@@ -125,6 +139,8 @@ pub struct SubmissionRow {
     pub started_at: Option<i64>,
     pub finished_at: Option<i64>,
     pub evaluator_version: Option<String>,
+    /// The hardware the reported times come from.
+    pub hardware: String,
     #[serde(skip)]
     pub preflight_json: String,
 }
@@ -138,6 +154,7 @@ pub struct NewSubmission<'a> {
     pub file_sha256: &'a str,
     pub file_size: i64,
     pub estimates_count: i64,
+    pub hardware: &'a str,
     pub preflight_json: &'a str,
 }
 
@@ -162,6 +179,9 @@ pub struct ScoreRow {
 pub struct BoardEntry {
     pub method_id: i64,
     pub method: String,
+    pub training_data: String,
+    pub modality: String,
+    pub hardware: String,
     pub dataset_id: i64,
     pub dataset: String,
     pub submission_id: i64,
@@ -183,7 +203,7 @@ fn protocols_from_text(s: &str) -> Vec<ProtocolName> {
 const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, d.name AS dataset, \
     s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, s.estimates_count, s.status, \
     s.progress, s.error, s.fault, s.attempts, s.created_at, s.started_at, s.finished_at, \
-    s.evaluator_version, s.preflight_json \
+    s.evaluator_version, s.hardware, s.preflight_json \
     FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
 
 fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
@@ -208,6 +228,7 @@ fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
         started_at: row.try_get("started_at")?,
         finished_at: row.try_get("finished_at")?,
         evaluator_version: row.try_get("evaluator_version")?,
+        hardware: row.try_get("hardware")?,
         preflight_json: row.try_get("preflight_json")?,
     })
 }
@@ -235,6 +256,8 @@ fn method(row: &AnyRow) -> Result<MethodRow, sqlx::Error> {
         description: row.try_get("description")?,
         paper_url: row.try_get("paper_url")?,
         code_url: row.try_get("code_url")?,
+        training_data: row.try_get("training_data")?,
+        modality: row.try_get("modality")?,
         created_at: row.try_get("created_at")?,
     })
 }
@@ -364,13 +387,7 @@ impl Store {
 
     /// The method of that name, created with the given metadata if new; the metadata of an
     /// existing method is updated where new values are given.
-    pub async fn ensure_method(
-        &self,
-        name: &str,
-        description: &str,
-        paper_url: &str,
-        code_url: &str,
-    ) -> AppResult<i64> {
+    pub async fn ensure_method(&self, name: &str, meta: &MethodMeta) -> AppResult<i64> {
         let existing = sqlx::query("SELECT id FROM methods WHERE name = $1")
             .bind(name)
             .fetch_optional(&self.pool)
@@ -378,11 +395,14 @@ impl Store {
         if let Some(row) = existing {
             let id: i64 = row.try_get("id")?;
             for (column, value) in [
-                ("description", description),
-                ("paper_url", paper_url),
-                ("code_url", code_url),
+                ("description", &meta.description),
+                ("paper_url", &meta.paper_url),
+                ("code_url", &meta.code_url),
+                ("training_data", &meta.training_data),
+                ("modality", &meta.modality),
             ] {
                 if !value.is_empty() {
+                    // `column` comes from the list above, never from the request.
                     let sql = format!("UPDATE methods SET {column} = $1 WHERE id = $2");
                     sqlx::query(sqlx::AssertSqlSafe(sql))
                         .bind(value)
@@ -394,13 +414,15 @@ impl Store {
             return Ok(id);
         }
         let row = sqlx::query(
-            "INSERT INTO methods (name, description, paper_url, code_url, created_at) \
-             VALUES ($1, $2, $3, $4, $5) RETURNING id",
+            "INSERT INTO methods (name, description, paper_url, code_url, training_data, modality, \
+             created_at) VALUES ($1, $2, $3, $4, $5, $6, $7) RETURNING id",
         )
         .bind(name)
-        .bind(description)
-        .bind(paper_url)
-        .bind(code_url)
+        .bind(&meta.description)
+        .bind(&meta.paper_url)
+        .bind(&meta.code_url)
+        .bind(&meta.training_data)
+        .bind(&meta.modality)
         .bind(now_ms())
         .fetch_one(&self.pool)
         .await?;
@@ -452,8 +474,8 @@ impl Store {
     pub async fn insert_submission(&self, s: &NewSubmission<'_>) -> AppResult<i64> {
         let row = sqlx::query(
             "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
-             file_sha256, file_size, estimates_count, preflight_json, status, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, 'queued', $10) RETURNING id",
+             file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11) RETURNING id",
         )
         .bind(s.method_id)
         .bind(s.dataset_id)
@@ -463,6 +485,7 @@ impl Store {
         .bind(s.file_sha256)
         .bind(s.file_size)
         .bind(s.estimates_count)
+        .bind(s.hardware)
         .bind(s.preflight_json)
         .bind(now_ms())
         .fetch_one(&self.pool)
@@ -759,7 +782,8 @@ impl Store {
         let rows = sqlx::query(
             "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, sc.ar_vsd, \
              sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, sc.estimates_ignored, \
-             s.method_id, m.name AS method, s.dataset_id, d.name AS dataset, s.finished_at \
+             s.method_id, m.name AS method, m.training_data, m.modality, s.hardware, \
+             s.dataset_id, d.name AS dataset, s.finished_at \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
              WHERE sc.protocol = $1 AND s.status = 'done' AND s.public = 1 AND d.retired = 0 \
@@ -787,6 +811,9 @@ impl Store {
             entries.push(BoardEntry {
                 method_id: r.try_get("method_id")?,
                 method: r.try_get("method")?,
+                training_data: r.try_get("training_data")?,
+                modality: r.try_get("modality")?,
+                hardware: r.try_get("hardware")?,
                 dataset_id: r.try_get("dataset_id")?,
                 dataset: r.try_get("dataset")?,
                 submission_id: score.submission_id,

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::report::{Parameters, parameters};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::app::AppState;
 use crate::error::{AppError, AppResult};
@@ -27,6 +27,10 @@ pub struct BoardRow {
     pub rank: usize,
     pub method_id: i64,
     pub method: String,
+    pub training_data: String,
+    pub modality: String,
+    /// The hardware of the method's latest submission shown.
+    pub hardware: String,
     /// Per dataset name, the method's score there.
     pub scores: BTreeMap<String, Cell>,
     /// Mean of the per-dataset scores; only when the method has a score on every dataset.
@@ -47,8 +51,69 @@ pub struct Leaderboard {
     /// With `?dataset=NAME`, that dataset (and the rows carry per-object scores).
     pub dataset: Option<DatasetRow>,
     pub object_ids: Vec<i64>,
-    pub sort: String,
+    pub filter: BoardFilter,
     pub rows: Vec<BoardRow>,
+}
+
+/// The query of a leaderboard page or its JSON twin.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct BoardFilter {
+    /// One dataset (its per-object table) instead of all.
+    pub dataset: Option<String>,
+    /// `average` (default), `time`, `method`, or a dataset name.
+    pub sort: Option<String>,
+    /// Only methods trained on this data (`synthetic`, `real`, `both`).
+    pub training: Option<String>,
+    /// Only methods using this input (`rgb`, `depth`, `rgb-d`).
+    pub modality: Option<String>,
+}
+
+impl BoardFilter {
+    /// The query string that keeps this filter but changes one key (for links on the page).
+    pub fn with(&self, key: &str, value: &str) -> String {
+        let mut pairs: Vec<(&str, String)> = Vec::new();
+        for (k, v) in [
+            ("dataset", &self.dataset),
+            ("training", &self.training),
+            ("modality", &self.modality),
+            ("sort", &self.sort),
+        ] {
+            if k == key {
+                if !value.is_empty() {
+                    pairs.push((k, value.to_string()));
+                }
+            } else if let Some(v) = v.as_ref().filter(|v| !v.is_empty()) {
+                pairs.push((k, v.clone()));
+            }
+        }
+        let q: Vec<String> = pairs
+            .iter()
+            .map(|(k, v)| format!("{k}={}", urlencode(v)))
+            .collect();
+        if q.is_empty() {
+            "?".to_string()
+        } else {
+            format!("?{}", q.join("&"))
+        }
+    }
+
+    fn matches(&self, e: &BoardEntry) -> bool {
+        let ok = |want: &Option<String>, have: &str| {
+            want.as_deref().is_none_or(|w| w.is_empty() || w == have)
+        };
+        ok(&self.training, &e.training_data) && ok(&self.modality, &e.modality)
+    }
+}
+
+fn urlencode(s: &str) -> String {
+    s.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 pub fn score_name(p: ProtocolName) -> &'static str {
@@ -58,13 +123,13 @@ pub fn score_name(p: ProtocolName) -> &'static str {
     }
 }
 
-/// Builds a leaderboard. `sort` is `average` (default), `time`, `method`, or a dataset name.
+/// Builds a leaderboard.
 pub async fn leaderboard(
     app: &AppState,
     protocol: ProtocolName,
-    dataset: Option<&str>,
-    sort: Option<&str>,
+    filter: &BoardFilter,
 ) -> AppResult<Leaderboard> {
+    let dataset = filter.dataset.as_deref();
     let datasets = app.store.datasets().await?;
     let selected = match dataset {
         Some(name) if !name.is_empty() => Some(
@@ -86,11 +151,14 @@ pub async fn leaderboard(
     };
     let mut by_method: BTreeMap<i64, BoardRow> = BTreeMap::new();
     let mut object_ids = std::collections::BTreeSet::new();
-    for e in &entries {
+    for e in entries.iter().filter(|e| filter.matches(e)) {
         let row = by_method.entry(e.method_id).or_insert_with(|| BoardRow {
             rank: 0,
             method_id: e.method_id,
             method: e.method.clone(),
+            training_data: e.training_data.clone(),
+            modality: e.modality.clone(),
+            hardware: e.hardware.clone(),
             scores: BTreeMap::new(),
             average: None,
             time: None,
@@ -116,7 +184,7 @@ pub async fn leaderboard(
             row.time = Some(times.iter().sum::<f64>() / times.len() as f64);
         }
     }
-    let sort = sort.unwrap_or("average").to_string();
+    let sort = filter.sort.clone().unwrap_or_else(|| "average".to_string());
     let key = |r: &BoardRow| -> f64 {
         match sort.as_str() {
             "average" => r.average.unwrap_or(-1.0),
@@ -147,7 +215,7 @@ pub async fn leaderboard(
         datasets,
         dataset: selected,
         object_ids: object_ids.into_iter().collect(),
-        sort,
+        filter: filter.clone(),
         rows,
     })
 }

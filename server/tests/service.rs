@@ -158,13 +158,19 @@ fn upload(
     file: &Path,
     protocol: Option<&str>,
 ) -> reqwest::blocking::Response {
+    let mut fields = vec![("method", method), ("dataset", dataset)];
+    if let Some(p) = protocol {
+        fields.push(("protocol", p));
+    }
+    upload_with(base, &fields, file)
+}
+
+fn upload_with(base: &str, fields: &[(&str, &str)], file: &Path) -> reqwest::blocking::Response {
     let mut form = multipart::Form::new()
-        .text("method", method.to_string())
-        .text("dataset", dataset.to_string())
         .file("file", file)
         .expect("result file");
-    if let Some(p) = protocol {
-        form = form.text("protocol", p.to_string());
+    for (k, v) in fields {
+        form = form.text(k.to_string(), v.to_string());
     }
     client()
         .post(format!("{base}/api/v1/submissions"))
@@ -222,7 +228,14 @@ fn upload_evaluate_and_rank(kind: Db) {
     let base = server.base.clone();
     let file = fixtures().join("results/noisemedium_synthA-test.csv");
 
-    let r = upload(&base, "noisy-net", "synthA", &file, None);
+    let meta = [
+        ("method", "noisy-net"),
+        ("dataset", "synthA"),
+        ("training_data", "synthetic"),
+        ("modality", "rgb-d"),
+        ("hardware", "test rig, 2 cores"),
+    ];
+    let r = upload_with(&base, &meta, &file);
     assert_eq!(r.status(), 202, "{kind:?}");
     let body: Value = r.json().expect("json");
     let id = body["id"].as_i64().expect("id");

@@ -8,7 +8,6 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use evaluator::protocol::ProtocolName;
-use serde::Deserialize;
 use serde_json::json;
 
 use crate::app::AppState;
@@ -93,21 +92,13 @@ async fn submission(
     Ok(Json(views::submission(&app, id).await?))
 }
 
-#[derive(Deserialize)]
-pub struct BoardQuery {
-    pub dataset: Option<String>,
-    pub sort: Option<String>,
-}
-
 async fn leaderboard(
     State(app): State<AppState>,
     Path(protocol): Path<String>,
-    Query(q): Query<BoardQuery>,
+    Query(filter): Query<views::BoardFilter>,
 ) -> AppResult<Json<views::Leaderboard>> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
-    Ok(Json(
-        views::leaderboard(&app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?,
-    ))
+    Ok(Json(views::leaderboard(&app, protocol, &filter).await?))
 }
 
 /// The OpenAPI description of this API, written by hand: it is small, and a generator would

@@ -15,10 +15,9 @@ use evaluator::protocol::ProtocolName;
 use crate::app::AppState;
 use crate::chart::Chart;
 use crate::error::{AppError, AppResult, ErrorBody};
-use crate::routes::api::BoardQuery;
 use crate::routes::submissions::{accept, read_upload};
 use crate::store::{DatasetRow, MethodRow, SubmissionRow};
-use crate::views::{self, Leaderboard, SubmissionView};
+use crate::views::{self, BoardFilter, Leaderboard, SubmissionView};
 
 pub fn router(max_upload: u64) -> Router<AppState> {
     Router::new()
@@ -104,7 +103,7 @@ struct LeaderboardPage {
 
 async fn home(
     State(app): State<AppState>,
-    Query(q): Query<BoardQuery>,
+    Query(q): Query<BoardFilter>,
 ) -> AppResult<LeaderboardPage> {
     leaderboard_page(&app, ProtocolName::Bop19, q).await
 }
@@ -112,7 +111,7 @@ async fn home(
 async fn leaderboard(
     State(app): State<AppState>,
     Path(protocol): Path<String>,
-    Query(q): Query<BoardQuery>,
+    Query(q): Query<BoardFilter>,
 ) -> AppResult<LeaderboardPage> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
     leaderboard_page(&app, protocol, q).await
@@ -121,10 +120,10 @@ async fn leaderboard(
 async fn leaderboard_page(
     app: &AppState,
     protocol: ProtocolName,
-    q: BoardQuery,
+    q: BoardFilter,
 ) -> AppResult<LeaderboardPage> {
     Ok(LeaderboardPage {
-        board: views::leaderboard(app, protocol, q.dataset.as_deref(), q.sort.as_deref()).await?,
+        board: views::leaderboard(app, protocol, &q).await?,
         protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
     })
 }
@@ -216,6 +215,7 @@ struct SubmitPage {
     description: String,
     paper_url: String,
     code_url: String,
+    hardware: String,
     max_upload_mb: u64,
 }
 
@@ -237,6 +237,7 @@ async fn submit(State(app): State<AppState>, multipart: Multipart) -> AppResult<
         description: upload.description.clone(),
         paper_url: upload.paper_url.clone(),
         code_url: upload.code_url.clone(),
+        hardware: upload.hardware.clone(),
         max_upload_mb: app.config.max_upload_mb,
         ..SubmitPage::default()
     };

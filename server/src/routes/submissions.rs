@@ -18,10 +18,13 @@ use tokio::io::AsyncWriteExt;
 
 use crate::app::AppState;
 use crate::error::{AppError, AppResult, LineProblem};
-use crate::store::{NewSubmission, SubmissionRow};
+use crate::store::{MethodMeta, NewSubmission, SubmissionRow};
 
 /// Longest accepted text field (method description and the like).
 const MAX_TEXT_FIELD: usize = 10_000;
+/// Values of the method metadata the BOP site asks for.
+pub const TRAINING_DATA: &[&str] = &["synthetic", "real", "both"];
+pub const MODALITIES: &[&str] = &["rgb", "depth", "rgb-d"];
 /// Evaluation cost assumed before any job has been timed, in seconds per evaluated estimate.
 const SECONDS_PER_ESTIMATE: f64 = 0.004;
 
@@ -34,6 +37,11 @@ pub struct Upload {
     pub description: String,
     pub paper_url: String,
     pub code_url: String,
+    /// `synthetic`, `real` or `both`.
+    pub training_data: String,
+    /// `rgb`, `depth` or `rgb-d`.
+    pub modality: String,
+    pub hardware: String,
     pub public: bool,
     pub file: Option<UploadedFile>,
 }
@@ -93,6 +101,9 @@ pub async fn read_upload(
             "description" => upload.description = text(field).await?.trim().to_string(),
             "paper_url" => upload.paper_url = text(field).await?.trim().to_string(),
             "code_url" => upload.code_url = text(field).await?.trim().to_string(),
+            "training_data" => upload.training_data = text(field).await?.trim().to_lowercase(),
+            "modality" => upload.modality = text(field).await?.trim().to_lowercase(),
+            "hardware" => upload.hardware = text(field).await?.trim().to_string(),
             "public" | "visibility" => {
                 let v = text(field).await?;
                 upload.public = matches!(v.trim(), "1" | "true" | "on" | "yes" | "public");
@@ -185,6 +196,22 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
             )));
         }
     }
+    for (field, value, allowed) in [
+        ("training_data", &upload.training_data, TRAINING_DATA),
+        ("modality", &upload.modality, MODALITIES),
+    ] {
+        if !value.is_empty() && !allowed.contains(&value.as_str()) {
+            return Err(AppError::BadRequest(format!(
+                "field `{field}` must be one of {}",
+                allowed.join(", ")
+            )));
+        }
+    }
+    if upload.hardware.chars().count() > 200 || upload.hardware.chars().any(|c| c.is_control()) {
+        return Err(AppError::BadRequest(
+            "field `hardware` must be at most 200 characters, without control characters".into(),
+        ));
+    }
     let file = upload
         .file
         .ok_or_else(|| AppError::BadRequest("field `file` (the result file) is required".into()))?;
@@ -235,9 +262,13 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
         .store
         .ensure_method(
             &method,
-            &upload.description,
-            &upload.paper_url,
-            &upload.code_url,
+            &MethodMeta {
+                description: upload.description.clone(),
+                paper_url: upload.paper_url.clone(),
+                code_url: upload.code_url.clone(),
+                training_data: upload.training_data.clone(),
+                modality: upload.modality.clone(),
+            },
         )
         .await?;
     if let Some(existing) = app
@@ -276,6 +307,7 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
             file_sha256: &file.sha256,
             file_size: file.size as i64,
             estimates_count: results.estimates.len() as i64,
+            hardware: &upload.hardware,
             preflight_json: &preflight_json,
         })
         .await?;
