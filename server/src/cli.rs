@@ -27,6 +27,8 @@ pub enum Command {
     /// Dataset tools.
     #[command(subcommand)]
     Dataset(service::DatasetCommand),
+    /// Accounts: create users and API tokens (for scripts and first administrators).
+    Admin(service::AdminArgs),
     /// Evaluate a result file on a dataset and print the scores.
     Eval(Box<eval::EvalArgs>),
     /// Validate a result file without evaluating it.
@@ -42,5 +44,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Worker(args) => service::worker(args),
         Command::Migrate(args) => service::migrate(args),
         Command::Dataset(cmd) => service::dataset(cmd),
+        Command::Admin(args) => service::admin(args),
     }
 }

@@ -7,6 +7,9 @@ use crate::app::App;
 use crate::demo::{DEMO_DATASET, SynthOptions, write_dataset, write_demo_results};
 use crate::routes::submissions::{Upload, UploadedFile, accept};
 
+/// The account that owns the demo submissions.
+pub const DEMO_USER: &str = "demo";
+
 /// Writes the demo dataset into `datasets_dir` unless it holds datasets already.
 pub async fn ensure_demo_dataset(datasets_dir: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(datasets_dir)?;
@@ -35,6 +38,18 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
     let Some(row) = app.store.dataset_by_name(DEMO_DATASET).await? else {
         return Ok(());
     };
+    // The demo methods belong to an account nobody can sign in to (its password is random).
+    let owner = match app.store.user_by_name(DEMO_USER).await? {
+        Some(u) => u,
+        None => {
+            let hash = crate::auth::hash_password(&crate::auth::new_secret())?;
+            app.store.create_user(DEMO_USER, &hash, false).await?;
+            app.store
+                .user_by_name(DEMO_USER)
+                .await?
+                .ok_or_else(|| anyhow::anyhow!("the demo account was not created"))?
+        }
+    };
     let out = tempfile::tempdir_in(&app.config.data_dir)?;
     let dataset_dir = std::path::PathBuf::from(&row.path);
     let out_dir = out.path().to_path_buf();
@@ -57,6 +72,7 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
             modality: "rgb-d".to_string(),
             hardware: "demo data: times are made up".to_string(),
             public: true,
+            csrf: String::new(),
             file: Some(UploadedFile {
                 name: demo
                     .path
@@ -71,7 +87,7 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
                 size: bytes.len() as u64,
             }),
         };
-        accept(app, upload).await?;
+        accept(app, upload, &owner).await?;
         tracing::info!(method = %demo.method, "demo submission queued");
     }
     Ok(())

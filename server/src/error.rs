@@ -19,6 +19,14 @@ pub struct LineProblem {
 pub enum AppError {
     #[error("not found")]
     NotFound,
+    /// No valid credentials (or a revoked token).
+    #[error("{0}")]
+    Unauthorized(String),
+    /// Credentials, but not for this (e.g. a missing or forged CSRF token).
+    #[error("{0}")]
+    Forbidden(String),
+    #[error("{0}")]
+    Conflict(String),
     #[error("{0}")]
     BadRequest(String),
     /// An upload that cannot be evaluated, with every problem found.
@@ -51,6 +59,9 @@ impl AppError {
     pub fn status(&self) -> StatusCode {
         match self {
             AppError::NotFound => StatusCode::NOT_FOUND,
+            AppError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            AppError::Forbidden(_) => StatusCode::FORBIDDEN,
+            AppError::Conflict(_) => StatusCode::CONFLICT,
             AppError::BadRequest(_) => StatusCode::BAD_REQUEST,
             AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,

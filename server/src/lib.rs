@@ -3,6 +3,7 @@
 //! one way: upload → validate → queue → evaluate → store → page.
 
 pub mod app;
+pub mod auth;
 pub mod chart;
 pub mod cli;
 pub mod config;

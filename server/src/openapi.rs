@@ -12,6 +12,7 @@ pub fn document() -> Value {
             "version": env!("CARGO_PKG_VERSION"),
             "description": "Evaluation and leaderboards of the BOP 6D object pose benchmark. Scores use bop_toolkit's key names."
         },
+        "components": { "securitySchemes": { "bearer": { "type": "http", "scheme": "bearer", "description": "a personal API token from /account" } } },
         "paths": {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
@@ -21,6 +22,7 @@ pub fn document() -> Value {
                 "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
                 "post": {
                     "summary": "Upload a result file (BOP'19 CSV) for evaluation",
+                    "security": [{ "bearer": [] }],
                     "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
                         "type": "object", "required": ["method", "dataset", "file"],
                         "properties": {
@@ -38,6 +40,8 @@ pub fn document() -> Value {
                         } } } } },
                     "responses": {
                         "202": { "description": "queued: {id, submission, preflight, url}" },
+                        "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
+                        "409": { "description": "the method name belongs to another account" },
                         "200": { "description": "the same file was already submitted for this method: the existing submission" },
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the file is larger than the limit" },

@@ -1,5 +1,6 @@
 //! The HTTP surface: pages, the JSON API, static files, and the tower-http layers around them.
 
+pub mod account;
 pub mod api;
 pub mod pages;
 pub mod submissions;
@@ -33,6 +34,7 @@ pub fn router(app: AppState) -> Router {
             HeaderValue::from_static("public, max-age=3600"),
         ));
     let pages = pages::router(max_upload)
+        .merge(account::router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()

@@ -17,6 +17,8 @@ use sqlx::{AnyPool, Row};
 
 use crate::error::{AppError, AppResult};
 
+pub mod accounts;
+
 static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/sqlite");
 static POSTGRES_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/postgres");
 
@@ -142,6 +144,8 @@ pub struct SubmissionRow {
     /// The hardware the reported times come from.
     pub hardware: String,
     #[serde(skip)]
+    pub owner_id: Option<i64>,
+    #[serde(skip)]
     pub preflight_json: String,
 }
 
@@ -156,6 +160,7 @@ pub struct NewSubmission<'a> {
     pub estimates_count: i64,
     pub hardware: &'a str,
     pub preflight_json: &'a str,
+    pub owner_id: i64,
 }
 
 /// One protocol's scores of a submission, as stored.
@@ -203,7 +208,7 @@ fn protocols_from_text(s: &str) -> Vec<ProtocolName> {
 const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, d.name AS dataset, \
     s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, s.estimates_count, s.status, \
     s.progress, s.error, s.fault, s.attempts, s.created_at, s.started_at, s.finished_at, \
-    s.evaluator_version, s.hardware, s.preflight_json \
+    s.evaluator_version, s.hardware, s.owner_id, s.preflight_json \
     FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
 
 fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
@@ -229,6 +234,7 @@ fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
         finished_at: row.try_get("finished_at")?,
         evaluator_version: row.try_get("evaluator_version")?,
         hardware: row.try_get("hardware")?,
+        owner_id: row.try_get("owner_id")?,
         preflight_json: row.try_get("preflight_json")?,
     })
 }
@@ -387,13 +393,24 @@ impl Store {
 
     /// The method of that name, created with the given metadata if new; the metadata of an
     /// existing method is updated where new values are given.
-    pub async fn ensure_method(&self, name: &str, meta: &MethodMeta) -> AppResult<i64> {
-        let existing = sqlx::query("SELECT id FROM methods WHERE name = $1")
+    /// A method belongs to the user who first submitted it; others get a conflict.
+    pub async fn ensure_method(
+        &self,
+        name: &str,
+        meta: &MethodMeta,
+        owner_id: i64,
+    ) -> AppResult<i64> {
+        let existing = sqlx::query("SELECT id, owner_id FROM methods WHERE name = $1")
             .bind(name)
             .fetch_optional(&self.pool)
             .await?;
         if let Some(row) = existing {
             let id: i64 = row.try_get("id")?;
+            if row.try_get::<Option<i64>, _>("owner_id")? != Some(owner_id) {
+                return Err(AppError::Conflict(format!(
+                    "the method name `{name}` belongs to another account"
+                )));
+            }
             for (column, value) in [
                 ("description", &meta.description),
                 ("paper_url", &meta.paper_url),
@@ -415,7 +432,7 @@ impl Store {
         }
         let row = sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, modality, \
-             created_at) VALUES ($1, $2, $3, $4, $5, $6, $7) RETURNING id",
+             created_at, owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id",
         )
         .bind(name)
         .bind(&meta.description)
@@ -424,6 +441,7 @@ impl Store {
         .bind(&meta.training_data)
         .bind(&meta.modality)
         .bind(now_ms())
+        .bind(owner_id)
         .fetch_one(&self.pool)
         .await?;
         Ok(row.try_get("id")?)
@@ -474,8 +492,8 @@ impl Store {
     pub async fn insert_submission(&self, s: &NewSubmission<'_>) -> AppResult<i64> {
         let row = sqlx::query(
             "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
-             file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11) RETURNING id",
+             file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
+             owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12) RETURNING id",
         )
         .bind(s.method_id)
         .bind(s.dataset_id)
@@ -488,6 +506,7 @@ impl Store {
         .bind(s.hardware)
         .bind(s.preflight_json)
         .bind(now_ms())
+        .bind(s.owner_id)
         .fetch_one(&self.pool)
         .await?;
         Ok(row.try_get("id")?)

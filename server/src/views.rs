@@ -245,10 +245,17 @@ pub struct SubmissionView {
     pub charts: Vec<crate::chart::Chart>,
 }
 
-/// A submission as its owner may see it: private ones answer as missing to everyone else
-/// (accounts come later; until then private submissions are reachable only by their id).
-pub async fn submission(app: &AppState, id: i64) -> AppResult<SubmissionView> {
+/// A submission as `viewer` may see it: a private one answers as missing to everyone but its
+/// owner and the admins, exactly like one that does not exist.
+pub async fn submission(
+    app: &AppState,
+    id: i64,
+    viewer: &crate::auth::Viewer,
+) -> AppResult<SubmissionView> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
+    if !submission.public && !viewer.can_see(submission.owner_id) {
+        return Err(AppError::NotFound);
+    }
     let queue_position = match submission.status {
         crate::store::Status::Queued => Some(app.store.queue_position(id).await?),
         _ => None,

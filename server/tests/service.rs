@@ -91,6 +91,8 @@ impl Drop for TestDb {
 struct Server {
     child: Child,
     base: String,
+    /// An API token of the account `tester`.
+    token: String,
 }
 
 impl Drop for Server {
@@ -100,8 +102,52 @@ impl Drop for Server {
     }
 }
 
+/// Runs `poseboard admin ...` against the server's database.
+fn admin(data_dir: &Path, db: &TestDb, args: &[&str]) -> String {
+    let mut cmd = Command::new(BIN);
+    cmd.arg("admin")
+        .arg("--data-dir")
+        .arg(data_dir)
+        .args(args)
+        .env_remove("DATABASE_URL");
+    if let Some(url) = &db.url {
+        cmd.env("DATABASE_URL", url);
+    }
+    let out = cmd.output().expect("poseboard admin runs");
+    assert!(
+        out.status.success(),
+        "admin {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .expect("utf-8")
+        .trim()
+        .to_string()
+}
+
+/// Creates an account (if new) and returns a fresh API token for it.
+fn account(data_dir: &Path, db: &TestDb, name: &str) -> String {
+    let pw = data_dir.join(format!("{name}.pw"));
+    std::fs::create_dir_all(data_dir).expect("mkdir");
+    if !pw.exists() {
+        std::fs::write(&pw, format!("{name}-secret-password\n")).expect("password file");
+        admin(
+            data_dir,
+            db,
+            &[
+                "create-user",
+                name,
+                "--password-file",
+                pw.to_str().expect("path"),
+            ],
+        );
+    }
+    admin(data_dir, db, &["create-token", name])
+}
+
 /// Starts `poseboard serve` on port 0 and waits for the line that tells its address.
 fn start(data_dir: &Path, datasets: &Path, db: &TestDb, extra: &[&str]) -> Server {
+    let token = account(data_dir, db, "tester");
     let mut cmd = Command::new(BIN);
     cmd.args(["serve", "--bind", "127.0.0.1:0", "--lease-secs", "2"])
         .arg("--data-dir")
@@ -129,7 +175,7 @@ fn start(data_dir: &Path, datasets: &Path, db: &TestDb, extra: &[&str]) -> Serve
         .to_string();
     // Keep draining stdout so the server never blocks on a full pipe.
     std::thread::spawn(move || for _ in lines {});
-    Server { child, base }
+    Server { child, base, token }
 }
 
 /// A datasets directory holding the reference dataset under the name `synthA`.
@@ -152,7 +198,7 @@ fn client() -> Client {
 }
 
 fn upload(
-    base: &str,
+    server: &Server,
     method: &str,
     dataset: &str,
     file: &Path,
@@ -162,21 +208,57 @@ fn upload(
     if let Some(p) = protocol {
         fields.push(("protocol", p));
     }
-    upload_with(base, &fields, file)
+    upload_with(server, &server.token, &fields, file)
 }
 
-fn upload_with(base: &str, fields: &[(&str, &str)], file: &Path) -> reqwest::blocking::Response {
+/// Uploads through the API with `token` (none when empty).
+fn upload_with(
+    server: &Server,
+    token: &str,
+    fields: &[(&str, &str)],
+    file: &Path,
+) -> reqwest::blocking::Response {
     let mut form = multipart::Form::new()
         .file("file", file)
         .expect("result file");
     for (k, v) in fields {
         form = form.text(k.to_string(), v.to_string());
     }
-    client()
-        .post(format!("{base}/api/v1/submissions"))
-        .multipart(form)
+    let mut request = client()
+        .post(format!("{}/api/v1/submissions", server.base))
+        .multipart(form);
+    if !token.is_empty() {
+        request = request.bearer_auth(token);
+    }
+    request.send().expect("upload answered")
+}
+
+/// A browser with its own cookies, signed up as `name`; returns it and the CSRF token its
+/// forms carry.
+fn browser(server: &Server, name: &str) -> (Client, String) {
+    let b = Client::builder()
+        .cookie_store(true)
+        .timeout(Duration::from_secs(60))
+        .build()
+        .expect("client");
+    let r = b
+        .post(format!("{}/register", server.base))
+        .form(&[
+            ("name", name),
+            ("password", "correct horse battery"),
+            ("next", "/account"),
+        ])
         .send()
-        .expect("upload answered")
+        .expect("register");
+    assert!(r.status().is_success(), "register {name}: {}", r.status());
+    let page = r.text().expect("account page");
+    (b, csrf_of(&page))
+}
+
+fn csrf_of(page: &str) -> String {
+    let needle = "name=\"csrf\" value=\"";
+    let at = page.find(needle).expect("a CSRF field") + needle.len();
+    page[at..].split('"').next().expect("value").to_string()
 }
 
 fn get_json(url: &str) -> Value {
@@ -235,7 +317,7 @@ fn upload_evaluate_and_rank(kind: Db) {
         ("modality", "rgb-d"),
         ("hardware", "test rig, 2 cores"),
     ];
-    let r = upload_with(&base, &meta, &file);
+    let r = upload_with(&server, &server.token, &meta, &file);
     assert_eq!(r.status(), 202, "{kind:?}");
     let body: Value = r.json().expect("json");
     let id = body["id"].as_i64().expect("id");
@@ -302,7 +384,7 @@ fn upload_evaluate_and_rank(kind: Db) {
     assert!(page.contains("<svg"), "curves are drawn");
 
     // The same file again for the same method is recognised.
-    let again = upload(&base, "noisy-net", "synthA", &file, None);
+    let again = upload(&server, "noisy-net", "synthA", &file, None);
     assert_eq!(again.status(), 200);
     let again: Value = again.json().expect("json");
     assert_eq!(again["duplicate"], true);
@@ -337,7 +419,7 @@ fn malformed_upload_leaves_nothing(kind: Db) {
         ("nan_synthA-test.csv", "non-finite number on line 4"),
     ] {
         let r = upload(
-            &server.base,
+            &server,
             "broken",
             "synthA",
             &fixtures().join("results/malformed").join(file),
@@ -355,7 +437,9 @@ fn malformed_upload_leaves_nothing(kind: Db) {
         assert!(problems.iter().all(|p| p["line"].as_u64().is_some()));
     }
     // The browser form shows the problems too.
+    let (b, csrf) = browser(&server, "formuser");
     let form = multipart::Form::new()
+        .text("csrf", csrf)
         .text("method", "broken")
         .text("dataset", "synthA")
         .file(
@@ -363,7 +447,7 @@ fn malformed_upload_leaves_nothing(kind: Db) {
             fixtures().join("results/malformed/wrong-columns_synthA-test.csv"),
         )
         .expect("file");
-    let r = client()
+    let r = b
         .post(format!("{}/submit", server.base))
         .multipart(form)
         .send()
@@ -388,7 +472,7 @@ fn malformed_upload_leaves_nothing(kind: Db) {
 
     // Unknown datasets and missing fields are refused with a clear 4xx.
     let r = upload(
-        &server.base,
+        &server,
         "x",
         "nope",
         &fixtures().join("results/gtexact_synthA-test.csv"),
@@ -454,6 +538,7 @@ fn an_upload_over_the_size_bound_is_refused_with_413() {
         .part("file", part);
     match client()
         .post(format!("{}/api/v1/submissions", server.base))
+        .bearer_auth(&server.token)
         .multipart(form)
         .send()
     {
@@ -509,7 +594,7 @@ fn crash_and_resume(kind: Db) {
     let id;
     {
         let server = start(&data, &datasets, &db, &args);
-        let r = upload(&server.base, "crashy", "synthbig", &file, None);
+        let r = upload(&server, "crashy", "synthbig", &file, None);
         assert_eq!(r.status(), 202);
         id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
         // Wait until the job runs and has made progress, then kill the server hard.
@@ -566,4 +651,206 @@ fn crash_and_resume_on_sqlite() {
 #[test]
 fn crash_and_resume_on_postgres() {
     crash_and_resume(Db::Postgres);
+}
+
+/// A small upload (no file): small enough to be sent whole before the server answers.
+fn post_without_file(server: &Server, token: &str) -> u16 {
+    let form = multipart::Form::new()
+        .text("method", "x")
+        .text("dataset", "synthA");
+    let mut r = client()
+        .post(format!("{}/api/v1/submissions", server.base))
+        .multipart(form);
+    if !token.is_empty() {
+        r = r.bearer_auth(token);
+    }
+    r.send().expect("answered").status().as_u16()
+}
+
+fn get_as(url: &str, token: &str) -> reqwest::blocking::Response {
+    let mut r = client().get(url);
+    if !token.is_empty() {
+        r = r.bearer_auth(token);
+    }
+    r.send().expect("answered")
+}
+
+/// Reads one column of every row of a table of the server's database.
+fn column(db: &TestDb, data_dir: &Path, sql: &str) -> Vec<String> {
+    let url = db
+        .url
+        .clone()
+        .unwrap_or_else(|| format!("sqlite://{}", data_dir.join("poseboard.db").display()));
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    rt.block_on(async {
+        use sqlx::{Connection, Row};
+        sqlx::any::install_default_drivers();
+        let mut conn = sqlx::AnyConnection::connect(&url).await.expect("database");
+        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
+            .fetch_all(&mut conn)
+            .await
+            .expect("query")
+            .iter()
+            .map(|r| r.try_get::<String, _>(0).expect("text column"))
+            .collect()
+    })
+}
+
+fn accounts_privacy_and_tokens(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "acct");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    let base = server.base.clone();
+    let file = fixtures().join("results/noisesmall_synthA-test.csv");
+    let fields = [
+        ("method", "secret-net"),
+        ("dataset", "synthA"),
+        ("visibility", "private"),
+    ];
+
+    // No credentials, or a token that is not one: 401 before the body is read.
+    for token in ["", "pbt_0000"] {
+        assert_eq!(
+            post_without_file(&server, token),
+            401,
+            "{kind:?}: token {token:?}"
+        );
+    }
+
+    // A private submission is visible to its owner only.
+    let r = upload_with(&server, &server.token, &fields, &file);
+    assert_eq!(r.status(), 202, "{kind:?}");
+    let id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+    let url = format!("{base}/api/v1/submissions/{id}");
+    let start_wait = Instant::now();
+    while get_as(&url, &server.token).json::<Value>().expect("json")["status"] != "done" {
+        assert!(start_wait.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let bob = account(&data, &db, "bob");
+    let missing = format!("{base}/api/v1/submissions/999999");
+    for token in ["", bob.as_str()] {
+        let hidden = get_as(&url, token);
+        assert_eq!(hidden.status(), 404, "{kind:?}: private submission leaked");
+        assert_eq!(
+            hidden.text().expect("body"),
+            get_as(&missing, token).text().expect("body")
+        );
+        let page = get_as(&format!("{base}/submissions/{id}"), token);
+        assert_eq!(page.status(), 404);
+        assert!(!page.text().expect("html").contains("secret-net"));
+    }
+    for listing in [
+        format!("{base}/api/v1/submissions"),
+        format!("{base}/api/v1/methods"),
+        format!("{base}/api/v1/leaderboards/bop19"),
+        format!("{base}/api/v1/leaderboards/eccv18?dataset=synthA"),
+        format!("{base}/leaderboards/bop19"),
+    ] {
+        let text = get_as(&listing, &bob).text().expect("body");
+        assert!(
+            !text.contains("secret-net"),
+            "{kind:?}: {listing} lists a private method"
+        );
+    }
+    // Another account cannot submit under a method name that is taken.
+    let taken = upload_with(
+        &server,
+        &bob,
+        &[("method", "secret-net"), ("dataset", "synthA")],
+        &file,
+    );
+    assert_eq!(taken.status(), 409);
+
+    // Forms need the session's CSRF token: missing or forged ones change nothing.
+    let (carol, csrf) = browser(&server, "carol");
+    for sent in [None, Some("forged")] {
+        let mut form = vec![("name", "script")];
+        if let Some(c) = sent {
+            form.push(("csrf", c));
+        }
+        let r = carol
+            .post(format!("{base}/account/tokens"))
+            .form(&form)
+            .send()
+            .expect("post");
+        assert_eq!(r.status(), 403, "{kind:?}: CSRF {sent:?}");
+    }
+    let tokens_page = carol
+        .get(format!("{base}/account"))
+        .send()
+        .expect("page")
+        .text()
+        .expect("html");
+    assert!(
+        !tokens_page.contains("<td>script</td>"),
+        "{kind:?}: a token was created"
+    );
+    let page = carol
+        .post(format!("{base}/account/tokens"))
+        .form(&[("name", "script"), ("csrf", csrf.as_str())])
+        .send()
+        .expect("post")
+        .text()
+        .expect("html");
+    let at = page
+        .find("<code id=\"new-token\">")
+        .expect("the new token is shown")
+        + 21;
+    let token = page[at..].split('<').next().expect("token").to_string();
+    let r = upload_with(
+        &server,
+        &token,
+        &[("method", "carol-net"), ("dataset", "synthA")],
+        &file,
+    );
+    assert_eq!(r.status(), 202);
+    // Revoked, it gets 401.
+    let token_id = page
+        .split("/account/tokens/")
+        .nth(1)
+        .and_then(|s| s.split('/').next())
+        .expect("a revoke form")
+        .to_string();
+    let r = carol
+        .post(format!("{base}/account/tokens/{token_id}/revoke"))
+        .form(&[("csrf", csrf.as_str())])
+        .send()
+        .expect("revoke");
+    assert!(r.status().is_success());
+    assert_eq!(
+        post_without_file(&server, &token),
+        401,
+        "{kind:?}: revoked token accepted"
+    );
+
+    // Secrets are never stored in clear.
+    let hashes = column(
+        &db,
+        &data,
+        "SELECT password_hash FROM users WHERE name = 'carol'",
+    );
+    assert!(hashes[0].starts_with("$argon2id$") && !hashes[0].contains("correct horse"));
+    let tokens = column(&db, &data, "SELECT token_hash FROM api_tokens");
+    assert!(
+        tokens
+            .iter()
+            .all(|t| t.len() == 64 && !token.contains(t.as_str()))
+    );
+    assert!(!tokens.contains(&token));
+}
+
+#[test]
+fn accounts_privacy_and_tokens_on_sqlite() {
+    accounts_privacy_and_tokens(Db::Sqlite);
+}
+
+#[test]
+fn accounts_privacy_and_tokens_on_postgres() {
+    accounts_privacy_and_tokens(Db::Postgres);
 }

@@ -135,3 +135,70 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
         }
     }
 }
+
+#[derive(Args, Debug)]
+pub struct AdminArgs {
+    #[command(subcommand)]
+    pub command: AdminCommand,
+    #[command(flatten)]
+    pub config: Config,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum AdminCommand {
+    /// Create an account; the password is read from a file so it never appears in a process list.
+    CreateUser {
+        name: String,
+        #[arg(long)]
+        password_file: PathBuf,
+        /// Make the account an administrator.
+        #[arg(long)]
+        admin: bool,
+    },
+    /// Print a new API token for the user (shown once; only its hash is stored).
+    CreateToken {
+        name: String,
+        /// A label for the token.
+        #[arg(long, default_value = "command line")]
+        label: String,
+    },
+}
+
+pub fn admin(args: AdminArgs) -> anyhow::Result<()> {
+    runtime()?.block_on(async move {
+        std::fs::create_dir_all(&args.config.data_dir)?;
+        let store = crate::store::Store::connect(&args.config.database_url()).await?;
+        store.migrate().await?;
+        match args.command {
+            AdminCommand::CreateUser {
+                name,
+                password_file,
+                admin,
+            } => {
+                let password = std::fs::read_to_string(&password_file)?;
+                let password = password.trim_end_matches(['\n', '\r']);
+                if password.chars().count() < 10 {
+                    anyhow::bail!("the password must have at least 10 characters");
+                }
+                let hash = crate::auth::hash_password(password)?;
+                store.create_user(&name, &hash, admin).await?;
+                println!(
+                    "created {}{name}",
+                    if admin { "administrator " } else { "user " }
+                );
+            }
+            AdminCommand::CreateToken { name, label } => {
+                let user = store
+                    .user_by_name(&name)
+                    .await?
+                    .ok_or_else(|| anyhow::anyhow!("no user `{name}`"))?;
+                let token = format!("{}{}", crate::auth::TOKEN_PREFIX, crate::auth::new_secret());
+                store
+                    .create_token(user.id, &label, &crate::auth::sha256_hex(&token))
+                    .await?;
+                println!("{token}");
+            }
+        }
+        Ok(())
+    })
+}

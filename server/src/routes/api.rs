@@ -11,6 +11,7 @@ use evaluator::protocol::ProtocolName;
 use serde_json::json;
 
 use crate::app::AppState;
+use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
 use crate::routes::submissions::{Accepted, accept, read_upload};
 use crate::views;
@@ -62,14 +63,17 @@ async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde
 
 async fn create_submission(
     State(app): State<AppState>,
+    viewer: Viewer,
     multipart: Multipart,
 ) -> AppResult<Response> {
+    // Refused before a byte of the body is read.
+    let owner = viewer.require_user()?.clone();
     let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let Accepted {
         submission,
         duplicate,
         preflight,
-    } = accept(&app, upload).await?;
+    } = accept(&app, upload, &owner).await?;
     let status = if duplicate {
         StatusCode::OK
     } else {
@@ -87,9 +91,10 @@ async fn create_submission(
 
 async fn submission(
     State(app): State<AppState>,
+    viewer: Viewer,
     Path(id): Path<i64>,
 ) -> AppResult<Json<views::SubmissionView>> {
-    Ok(Json(views::submission(&app, id).await?))
+    Ok(Json(views::submission(&app, id, &viewer).await?))
 }
 
 async fn leaderboard(

@@ -13,6 +13,7 @@ use axum::routing::get;
 use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
+use crate::auth::Viewer;
 use crate::chart::Chart;
 use crate::error::{AppError, AppResult, ErrorBody};
 use crate::routes::submissions::{accept, read_upload};
@@ -35,7 +36,7 @@ pub fn router(max_upload: u64) -> Router<AppState> {
 }
 
 /// Formats scores and times for the templates.
-mod filters {
+pub(crate) mod filters {
     #[askama::filter_fn]
     pub fn pct(v: &f64, _: &dyn askama::Values) -> askama::Result<String> {
         Ok(format!("{:.1}", v * 100.0))
@@ -184,8 +185,12 @@ impl SubmissionPage {
     }
 }
 
-async fn submission(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<SubmissionPage> {
-    let view = views::submission(&app, id).await?;
+async fn submission(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<SubmissionPage> {
+    let view = views::submission(&app, id, &viewer).await?;
     let warnings = view
         .preflight
         .get("warnings")
@@ -217,20 +222,33 @@ struct SubmitPage {
     code_url: String,
     hardware: String,
     max_upload_mb: u64,
+    csrf: String,
 }
 
-async fn submit_form(State(app): State<AppState>) -> AppResult<SubmitPage> {
+async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    if viewer.session.is_none() {
+        return Ok(Redirect::to("/login?next=/submit").into_response());
+    }
     Ok(SubmitPage {
         datasets: app.store.datasets().await?,
         max_upload_mb: app.config.max_upload_mb,
+        csrf: viewer.csrf_token(),
         ..SubmitPage::default()
-    })
+    }
+    .into_response())
 }
 
 /// The form posts here; a valid upload redirects to its page, an invalid one shows the form
 /// again with every problem and the values typed so far.
-async fn submit(State(app): State<AppState>, multipart: Multipart) -> AppResult<Response> {
+async fn submit(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    multipart: Multipart,
+) -> AppResult<Response> {
+    // Anonymous posts are refused before the body is read; the token is checked once read.
+    viewer.require_user()?;
     let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let owner = viewer.check_csrf(&upload.csrf)?.clone();
     let typed = SubmitPage {
         method: upload.method.clone(),
         dataset: upload.dataset.clone(),
@@ -239,9 +257,10 @@ async fn submit(State(app): State<AppState>, multipart: Multipart) -> AppResult<
         code_url: upload.code_url.clone(),
         hardware: upload.hardware.clone(),
         max_upload_mb: app.config.max_upload_mb,
+        csrf: viewer.csrf_token(),
         ..SubmitPage::default()
     };
-    match accept(&app, upload).await {
+    match accept(&app, upload, &owner).await {
         Ok(accepted) => {
             Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response())
         }

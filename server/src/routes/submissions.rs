@@ -18,6 +18,7 @@ use tokio::io::AsyncWriteExt;
 
 use crate::app::AppState;
 use crate::error::{AppError, AppResult, LineProblem};
+use crate::store::accounts::User;
 use crate::store::{MethodMeta, NewSubmission, SubmissionRow};
 
 /// Longest accepted text field (method description and the like).
@@ -43,6 +44,8 @@ pub struct Upload {
     pub modality: String,
     pub hardware: String,
     pub public: bool,
+    /// The CSRF token of a browser form (the API authenticates by token instead).
+    pub csrf: String,
     pub file: Option<UploadedFile>,
 }
 
@@ -104,6 +107,7 @@ pub async fn read_upload(
             "training_data" => upload.training_data = text(field).await?.trim().to_lowercase(),
             "modality" => upload.modality = text(field).await?.trim().to_lowercase(),
             "hardware" => upload.hardware = text(field).await?.trim().to_string(),
+            "csrf" => upload.csrf = text(field).await?.trim().to_string(),
             "public" | "visibility" => {
                 let v = text(field).await?;
                 upload.public = matches!(v.trim(), "1" | "true" | "on" | "yes" | "public");
@@ -176,8 +180,8 @@ async fn save_file(app: &AppState, mut field: Field<'_>, limit: u64) -> AppResul
     })
 }
 
-/// Validates, pre-flights, stores and queues an upload.
-pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
+/// Validates, pre-flights, stores and queues an upload by `owner`.
+pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<Accepted> {
     let method = check_name("method", &upload.method)?;
     if upload.dataset.is_empty() {
         return Err(AppError::BadRequest("field `dataset` is required".into()));
@@ -269,6 +273,7 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
                 training_data: upload.training_data.clone(),
                 modality: upload.modality.clone(),
             },
+            owner.id,
         )
         .await?;
     if let Some(existing) = app
@@ -309,6 +314,7 @@ pub async fn accept(app: &AppState, upload: Upload) -> AppResult<Accepted> {
             estimates_count: results.estimates.len() as i64,
             hardware: &upload.hardware,
             preflight_json: &preflight_json,
+            owner_id: owner.id,
         })
         .await?;
     app.wake.notify_waiters();

@@ -1,0 +1,154 @@
+//! Who is asking: a browser with a session cookie, a script with a personal API token
+//! (`Authorization: Bearer TOKEN`), or nobody. Also the secrets themselves: argon2id password
+//! hashes, random session secrets and tokens (stored as SHA-256), and CSRF tokens.
+
+use argon2::{Argon2, PasswordHash, PasswordHasher, PasswordVerifier};
+use axum::extract::FromRequestParts;
+use axum::http::request::Parts;
+use axum::http::{HeaderMap, header};
+use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
+use rand::RngCore;
+use sha2::{Digest, Sha256};
+
+use crate::app::AppState;
+use crate::error::{AppError, AppResult};
+use crate::store::accounts::{Session, User};
+
+pub const SESSION_COOKIE: &str = "pb_session";
+/// Sessions last two weeks.
+pub const SESSION_TTL_MS: i64 = 14 * 24 * 3600 * 1000;
+/// Personal tokens carry a prefix so that leaked ones are easy to recognise.
+pub const TOKEN_PREFIX: &str = "pbt_";
+
+pub fn hash_password(password: &str) -> AppResult<String> {
+    Argon2::default()
+        .hash_password(password.as_bytes())
+        .map(|h| h.to_string())
+        .map_err(|e| AppError::Internal(format!("password hashing failed: {e}")))
+}
+
+pub fn verify_password(password: &str, stored: &str) -> bool {
+    PasswordHash::new(stored)
+        .map(|h| {
+            Argon2::default()
+                .verify_password(password.as_bytes(), &h)
+                .is_ok()
+        })
+        .unwrap_or(false)
+}
+
+/// 256 random bits, hex-encoded.
+pub fn new_secret() -> String {
+    let mut bytes = [0u8; 32];
+    rand::rng().fill_bytes(&mut bytes);
+    hex::encode(bytes)
+}
+
+pub fn sha256_hex(secret: &str) -> String {
+    hex::encode(Sha256::digest(secret.as_bytes()))
+}
+
+/// Compares without an early exit, so the time taken does not tell how much of a guess was right.
+pub fn same_secret(a: &str, b: &str) -> bool {
+    a.len() == b.len()
+        && a.bytes()
+            .zip(b.bytes())
+            .fold(0u8, |acc, (x, y)| acc | (x ^ y))
+            == 0
+}
+
+/// The requester.
+#[derive(Clone, Debug, Default)]
+pub struct Viewer {
+    pub user: Option<User>,
+    /// Present for a signed-in browser; its CSRF token guards every form.
+    pub session: Option<Session>,
+}
+
+impl Viewer {
+    pub fn require_user(&self) -> AppResult<&User> {
+        self.user.as_ref().ok_or_else(|| {
+            AppError::Unauthorized(
+                "sign in, or send an API token as `Authorization: Bearer TOKEN`".into(),
+            )
+        })
+    }
+
+    /// Checks the CSRF token a form sent against the session's.
+    pub fn check_csrf(&self, sent: &str) -> AppResult<&User> {
+        match &self.session {
+            Some(s) if same_secret(&s.csrf_token, sent) => Ok(&s.user),
+            Some(_) => Err(AppError::Forbidden(
+                "the form is stale or forged: reload the page and try again".into(),
+            )),
+            None => Err(AppError::Unauthorized("sign in first".into())),
+        }
+    }
+
+    pub fn csrf_token(&self) -> String {
+        self.session
+            .as_ref()
+            .map(|s| s.csrf_token.clone())
+            .unwrap_or_default()
+    }
+
+    /// Whether this viewer may see something owned by `owner` (admins see everything).
+    pub fn can_see(&self, owner: Option<i64>) -> bool {
+        self.user
+            .as_ref()
+            .is_some_and(|u| u.is_admin || Some(u.id) == owner)
+    }
+}
+
+impl FromRequestParts<AppState> for Viewer {
+    type Rejection = AppError;
+
+    async fn from_request_parts(
+        parts: &mut Parts,
+        app: &AppState,
+    ) -> Result<Self, Self::Rejection> {
+        if let Some(value) = parts.headers.get(header::AUTHORIZATION) {
+            let token = value
+                .to_str()
+                .ok()
+                .and_then(|v| v.strip_prefix("Bearer "))
+                .map(str::trim)
+                .ok_or_else(|| AppError::Unauthorized("malformed Authorization header".into()))?;
+            let user = app
+                .store
+                .user_for_token(&sha256_hex(token))
+                .await?
+                .ok_or_else(|| AppError::Unauthorized("invalid or revoked token".into()))?;
+            return Ok(Viewer {
+                user: Some(user),
+                session: None,
+            });
+        }
+        let jar = CookieJar::from_headers(&parts.headers);
+        if let Some(cookie) = jar.get(SESSION_COOKIE)
+            && let Some(session) = app.store.session(&sha256_hex(cookie.value())).await?
+        {
+            return Ok(Viewer {
+                user: Some(session.user.clone()),
+                session: Some(session),
+            });
+        }
+        Ok(Viewer::default())
+    }
+}
+
+/// The session cookie: HttpOnly, SameSite=Lax, and Secure when the request came over TLS
+/// (directly or through a proxy that says so). It lives as long as the browser session; the
+/// server forgets it after `SESSION_TTL_MS` in any case.
+pub fn session_cookie(secret: String, headers: &HeaderMap) -> Cookie<'static> {
+    let tls = headers
+        .get("x-forwarded-proto")
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.eq_ignore_ascii_case("https"));
+    Cookie::build((SESSION_COOKIE, secret))
+        .path("/")
+        .http_only(true)
+        .same_site(SameSite::Lax)
+        .secure(tls)
+        .build()
+}

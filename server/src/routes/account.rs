@@ -1,0 +1,257 @@
+//! Registration, signing in and out, and personal API tokens.
+
+use askama::Template;
+use askama_web::WebTemplate;
+use axum::Router;
+use axum::extract::{Form, Path, Query, State};
+use axum::http::HeaderMap;
+use axum::response::{IntoResponse, Redirect, Response};
+use axum::routing::{get, post};
+use axum_extra::extract::cookie::{Cookie, CookieJar};
+use serde::Deserialize;
+
+use crate::app::AppState;
+use crate::auth::{
+    self, SESSION_COOKIE, SESSION_TTL_MS, TOKEN_PREFIX, Viewer, hash_password, new_secret,
+    sha256_hex,
+};
+use crate::error::{AppError, AppResult};
+use crate::routes::pages::filters;
+use crate::store::accounts::TokenRow;
+
+pub fn router() -> Router<AppState> {
+    Router::new()
+        .route("/login", get(login_form).post(login))
+        .route("/register", get(register_form).post(register))
+        .route("/logout", post(logout))
+        .route("/account", get(account))
+        .route("/account/tokens", post(create_token))
+        .route("/account/tokens/{id}/revoke", post(revoke_token))
+}
+
+#[derive(Template, WebTemplate, Default)]
+#[template(path = "login.html")]
+struct LoginPage {
+    register: bool,
+    name: String,
+    next: String,
+    error: Option<String>,
+}
+
+#[derive(Deserialize, Default)]
+struct NextQuery {
+    next: Option<String>,
+}
+
+/// Only local paths are followed after signing in (no open redirect).
+fn safe_next(next: Option<&str>) -> String {
+    match next {
+        Some(n) if n.starts_with('/') && !n.starts_with("//") && !n.contains('\\') => n.to_string(),
+        _ => "/account".to_string(),
+    }
+}
+
+async fn login_form(Query(q): Query<NextQuery>) -> LoginPage {
+    LoginPage {
+        next: safe_next(q.next.as_deref()),
+        ..LoginPage::default()
+    }
+}
+
+async fn register_form(Query(q): Query<NextQuery>) -> LoginPage {
+    LoginPage {
+        register: true,
+        next: safe_next(q.next.as_deref()),
+        ..LoginPage::default()
+    }
+}
+
+#[derive(Deserialize)]
+struct Credentials {
+    name: String,
+    password: String,
+    next: Option<String>,
+}
+
+async fn login(
+    State(app): State<AppState>,
+    headers: HeaderMap,
+    jar: CookieJar,
+    Form(c): Form<Credentials>,
+) -> AppResult<Response> {
+    let next = safe_next(c.next.as_deref());
+    let found = app.store.user_for_login(c.name.trim()).await?;
+    // Verification runs on the blocking pool: argon2 is deliberately slow.
+    let verified = match found {
+        Some((user, hash)) => {
+            let pw = c.password.clone();
+            tokio::task::spawn_blocking(move || auth::verify_password(&pw, &hash))
+                .await
+                .map_err(|e| AppError::Internal(e.to_string()))?
+                .then_some(user)
+        }
+        None => None,
+    };
+    let Some(user) = verified else {
+        let page = LoginPage {
+            name: c.name,
+            next,
+            error: Some("unknown name or wrong password".into()),
+            ..LoginPage::default()
+        };
+        return Ok((axum::http::StatusCode::UNAUTHORIZED, page).into_response());
+    };
+    start_session(&app, user.id, &headers, jar, &next).await
+}
+
+async fn start_session(
+    app: &AppState,
+    user_id: i64,
+    headers: &HeaderMap,
+    jar: CookieJar,
+    next: &str,
+) -> AppResult<Response> {
+    let secret = new_secret();
+    app.store
+        .create_session(user_id, &sha256_hex(&secret), &new_secret(), SESSION_TTL_MS)
+        .await?;
+    let jar = jar.add(auth::session_cookie(secret, headers));
+    Ok((jar, Redirect::to(next)).into_response())
+}
+
+async fn register(
+    State(app): State<AppState>,
+    headers: HeaderMap,
+    jar: CookieJar,
+    Form(c): Form<Credentials>,
+) -> AppResult<Response> {
+    let next = safe_next(c.next.as_deref());
+    let name = c.name.trim().to_string();
+    let problem = if name.is_empty() || name.chars().count() > 40 {
+        Some("the name must have 1 to 40 characters")
+    } else if !name
+        .chars()
+        .all(|ch| ch.is_alphanumeric() || "-_.".contains(ch))
+    {
+        Some("the name may contain letters, digits, `-`, `_` and `.`")
+    } else if c.password.chars().count() < 10 || c.password.len() > 1024 {
+        Some("the password must have 10 to 1024 characters")
+    } else {
+        None
+    };
+    if let Some(problem) = problem {
+        let page = LoginPage {
+            register: true,
+            name,
+            next,
+            error: Some(problem.into()),
+        };
+        return Ok((axum::http::StatusCode::UNPROCESSABLE_ENTITY, page).into_response());
+    }
+    let pw = c.password.clone();
+    let hash = tokio::task::spawn_blocking(move || hash_password(&pw))
+        .await
+        .map_err(|e| AppError::Internal(e.to_string()))??;
+    let id = match app.store.create_user(&name, &hash, false).await {
+        Ok(id) => id,
+        Err(AppError::Conflict(msg)) => {
+            let page = LoginPage {
+                register: true,
+                name,
+                next,
+                error: Some(msg),
+            };
+            return Ok((axum::http::StatusCode::CONFLICT, page).into_response());
+        }
+        Err(e) => return Err(e),
+    };
+    start_session(&app, id, &headers, jar, &next).await
+}
+
+#[derive(Deserialize)]
+struct CsrfForm {
+    /// Missing counts as wrong: refused with 403 like a forged one.
+    #[serde(default)]
+    csrf: String,
+    #[serde(default)]
+    name: String,
+}
+
+async fn logout(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    jar: CookieJar,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    viewer.check_csrf(&f.csrf)?;
+    if let Some(cookie) = jar.get(SESSION_COOKIE) {
+        app.store
+            .delete_session(&sha256_hex(cookie.value()))
+            .await?;
+    }
+    let jar = jar.remove(Cookie::build(SESSION_COOKIE).path("/"));
+    Ok((jar, Redirect::to("/")).into_response())
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "account.html")]
+struct AccountPage {
+    name: String,
+    csrf: String,
+    tokens: Vec<TokenRow>,
+    /// A token just created: shown this once, never again.
+    new_token: Option<String>,
+}
+
+async fn account_page(
+    app: &AppState,
+    viewer: &Viewer,
+    new_token: Option<String>,
+) -> AppResult<Response> {
+    let Some(session) = &viewer.session else {
+        return Ok(Redirect::to("/login?next=/account").into_response());
+    };
+    Ok(AccountPage {
+        name: session.user.name.clone(),
+        csrf: session.csrf_token.clone(),
+        tokens: app.store.tokens(session.user.id).await?,
+        new_token,
+    }
+    .into_response())
+}
+
+async fn account(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    account_page(&app, &viewer, None).await
+}
+
+async fn create_token(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let user = viewer.check_csrf(&f.csrf)?.clone();
+    let name = f.name.trim();
+    if name.is_empty() || name.chars().count() > 100 {
+        return Err(AppError::BadRequest(
+            "a token needs a name of 1 to 100 characters".into(),
+        ));
+    }
+    let token = format!("{TOKEN_PREFIX}{}", new_secret());
+    app.store
+        .create_token(user.id, name, &sha256_hex(&token))
+        .await?;
+    account_page(&app, &viewer, Some(token)).await
+}
+
+async fn revoke_token(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let user = viewer.check_csrf(&f.csrf)?.clone();
+    if !app.store.revoke_token(user.id, id).await? {
+        return Err(AppError::NotFound);
+    }
+    Ok(Redirect::to("/account").into_response())
+}

@@ -1,0 +1,195 @@
+//! Users, browser sessions and API tokens. Secrets (passwords, session cookies, tokens) are
+//! never stored: passwords as argon2id hashes, session secrets and tokens as SHA-256 (they are
+//! 256-bit random, so a fast hash is enough and argon2 per request would be too slow).
+
+use serde::Serialize;
+use sqlx::Row;
+
+use super::{Store, now_ms};
+use crate::error::{AppError, AppResult};
+
+#[derive(Clone, Debug, Serialize)]
+pub struct User {
+    pub id: i64,
+    pub name: String,
+    pub is_admin: bool,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct TokenRow {
+    pub id: i64,
+    pub name: String,
+    pub created_at: i64,
+    pub last_used_at: Option<i64>,
+    pub revoked_at: Option<i64>,
+}
+
+/// A signed-in browser: who, and the token its forms must carry.
+#[derive(Clone, Debug)]
+pub struct Session {
+    pub user: User,
+    pub csrf_token: String,
+}
+
+impl Store {
+    pub async fn create_user(
+        &self,
+        name: &str,
+        password_hash: &str,
+        is_admin: bool,
+    ) -> AppResult<i64> {
+        let row = sqlx::query(
+            "INSERT INTO users (name, password_hash, is_admin, created_at) VALUES ($1, $2, $3, $4) \
+             ON CONFLICT (name) DO NOTHING RETURNING id",
+        )
+        .bind(name)
+        .bind(password_hash)
+        .bind(is_admin as i64)
+        .bind(now_ms())
+        .fetch_optional(&self.pool)
+        .await?;
+        match row {
+            Some(row) => Ok(row.try_get("id")?),
+            None => Err(AppError::Conflict(format!("the name `{name}` is taken"))),
+        }
+    }
+
+    /// The user and their password hash, for signing in.
+    pub async fn user_for_login(&self, name: &str) -> AppResult<Option<(User, String)>> {
+        let row =
+            sqlx::query("SELECT id, name, is_admin, password_hash FROM users WHERE name = $1")
+                .bind(name)
+                .fetch_optional(&self.pool)
+                .await?;
+        Ok(row
+            .map(|r| -> Result<_, sqlx::Error> { Ok((user(&r)?, r.try_get("password_hash")?)) })
+            .transpose()?)
+    }
+
+    pub async fn user_by_name(&self, name: &str) -> AppResult<Option<User>> {
+        Ok(self.user_for_login(name).await?.map(|(u, _)| u))
+    }
+
+    pub async fn create_session(
+        &self,
+        user_id: i64,
+        secret_hash: &str,
+        csrf_token: &str,
+        ttl_ms: i64,
+    ) -> AppResult<()> {
+        let now = now_ms();
+        sqlx::query(
+            "INSERT INTO sessions (secret_hash, user_id, csrf_token, created_at, expires_at) \
+             VALUES ($1, $2, $3, $4, $5)",
+        )
+        .bind(secret_hash)
+        .bind(user_id)
+        .bind(csrf_token)
+        .bind(now)
+        .bind(now + ttl_ms)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    pub async fn session(&self, secret_hash: &str) -> AppResult<Option<Session>> {
+        let row = sqlx::query(
+            "SELECT u.id, u.name, u.is_admin, s.csrf_token FROM sessions s \
+             JOIN users u ON u.id = s.user_id WHERE s.secret_hash = $1 AND s.expires_at > $2",
+        )
+        .bind(secret_hash)
+        .bind(now_ms())
+        .fetch_optional(&self.pool)
+        .await?;
+        Ok(row
+            .map(|r| -> Result<_, sqlx::Error> {
+                Ok(Session {
+                    user: user(&r)?,
+                    csrf_token: r.try_get("csrf_token")?,
+                })
+            })
+            .transpose()?)
+    }
+
+    pub async fn delete_session(&self, secret_hash: &str) -> AppResult<()> {
+        sqlx::query("DELETE FROM sessions WHERE secret_hash = $1")
+            .bind(secret_hash)
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+
+    pub async fn create_token(&self, user_id: i64, name: &str, token_hash: &str) -> AppResult<i64> {
+        let row = sqlx::query(
+            "INSERT INTO api_tokens (user_id, name, token_hash, created_at) VALUES ($1, $2, $3, $4) RETURNING id",
+        )
+        .bind(user_id)
+        .bind(name)
+        .bind(token_hash)
+        .bind(now_ms())
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(row.try_get("id")?)
+    }
+
+    /// The owner of a live token, recording its use.
+    pub async fn user_for_token(&self, token_hash: &str) -> AppResult<Option<User>> {
+        let row = sqlx::query(
+            "UPDATE api_tokens SET last_used_at = $1 WHERE token_hash = $2 AND revoked_at IS NULL \
+             RETURNING user_id",
+        )
+        .bind(now_ms())
+        .bind(token_hash)
+        .fetch_optional(&self.pool)
+        .await?;
+        let Some(row) = row else { return Ok(None) };
+        let id: i64 = row.try_get("user_id")?;
+        let row = sqlx::query("SELECT id, name, is_admin FROM users WHERE id = $1")
+            .bind(id)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(Some(user(&row)?))
+    }
+
+    pub async fn tokens(&self, user_id: i64) -> AppResult<Vec<TokenRow>> {
+        let rows = sqlx::query(
+            "SELECT id, name, created_at, last_used_at, revoked_at FROM api_tokens \
+             WHERE user_id = $1 ORDER BY id DESC",
+        )
+        .bind(user_id)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| {
+                Ok(TokenRow {
+                    id: r.try_get("id")?,
+                    name: r.try_get("name")?,
+                    created_at: r.try_get("created_at")?,
+                    last_used_at: r.try_get("last_used_at")?,
+                    revoked_at: r.try_get("revoked_at")?,
+                })
+            })
+            .collect()
+    }
+
+    /// Revokes one of the user's own tokens; false when there is no such live token.
+    pub async fn revoke_token(&self, user_id: i64, token_id: i64) -> AppResult<bool> {
+        let done = sqlx::query(
+            "UPDATE api_tokens SET revoked_at = $1 WHERE id = $2 AND user_id = $3 AND revoked_at IS NULL",
+        )
+        .bind(now_ms())
+        .bind(token_id)
+        .bind(user_id)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+}
+
+fn user(r: &sqlx::any::AnyRow) -> Result<User, sqlx::Error> {
+    Ok(User {
+        id: r.try_get("id")?,
+        name: r.try_get("name")?,
+        is_admin: r.try_get::<i64, _>("is_admin")? != 0,
+    })
+}
