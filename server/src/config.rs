@@ -30,6 +30,13 @@ pub struct Config {
     /// Largest accepted result file, in MiB.
     #[arg(long, env = "POSEBOARD_MAX_UPLOAD_MB", default_value_t = 64)]
     pub max_upload_mb: u64,
+    /// Submissions a user may make per dataset within the fair-use window (0 = no limit).
+    /// Submissions that failed through the service's fault do not count.
+    #[arg(long, env = "POSEBOARD_SUBMISSIONS_PER_WINDOW", default_value_t = 5)]
+    pub submissions_per_window: u64,
+    /// The fair-use window, in seconds (a day by default).
+    #[arg(long, env = "POSEBOARD_LIMIT_WINDOW_SECS", default_value_t = 86_400)]
+    pub limit_window_secs: u64,
     /// Do not generate the demo dataset and submissions.
     #[arg(long, env = "POSEBOARD_NO_DEMO")]
     pub no_demo: bool,

@@ -27,6 +27,9 @@ pub enum AppError {
     Forbidden(String),
     #[error("{0}")]
     Conflict(String),
+    /// Over a fair-use limit; `retry_at` (epoch ms) is when the next request is allowed.
+    #[error("{message}")]
+    TooMany { message: String, retry_at: i64 },
     #[error("{0}")]
     BadRequest(String),
     /// An upload that cannot be evaluated, with every problem found.
@@ -53,6 +56,9 @@ pub struct ErrorBody {
     pub error: String,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub problems: Vec<LineProblem>,
+    /// For 429: when the next request is allowed (epoch milliseconds).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub retry_at: Option<i64>,
 }
 
 impl AppError {
@@ -62,6 +68,7 @@ impl AppError {
             AppError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
             AppError::Forbidden(_) => StatusCode::FORBIDDEN,
             AppError::Conflict(_) => StatusCode::CONFLICT,
+            AppError::TooMany { .. } => StatusCode::TOO_MANY_REQUESTS,
             AppError::BadRequest(_) => StatusCode::BAD_REQUEST,
             AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
@@ -83,7 +90,15 @@ impl AppError {
             AppError::Invalid { problems, .. } => problems.clone(),
             _ => Vec::new(),
         };
-        ErrorBody { error, problems }
+        let retry_at = match self {
+            AppError::TooMany { retry_at, .. } => Some(*retry_at),
+            _ => None,
+        };
+        ErrorBody {
+            error,
+            problems,
+            retry_at,
+        }
     }
 }
 
@@ -95,6 +110,14 @@ impl IntoResponse for AppError {
         }
         let body = self.body();
         let mut response = (status, Json(body.clone())).into_response();
+        if let Some(at) = body.retry_at {
+            let secs = ((at - crate::store::now_ms()).max(0) + 999) / 1000;
+            if let Ok(v) = axum::http::HeaderValue::from_str(&secs.to_string()) {
+                response
+                    .headers_mut()
+                    .insert(axum::http::header::RETRY_AFTER, v);
+            }
+        }
         response.extensions_mut().insert(body);
         response
     }

@@ -544,6 +544,26 @@ impl Store {
         Ok(rows.iter().map(submission).collect::<Result<_, _>>()?)
     }
 
+    /// Creation times of the user's submissions on a dataset since `since` (epoch ms), oldest
+    /// first, not counting those that failed through the service's fault.
+    pub async fn recent_submission_times(
+        &self,
+        owner_id: i64,
+        dataset_id: i64,
+        since: i64,
+    ) -> AppResult<Vec<i64>> {
+        let rows = sqlx::query(
+            "SELECT created_at FROM submissions WHERE owner_id = $1 AND dataset_id = $2 \
+             AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') ORDER BY created_at",
+        )
+        .bind(owner_id)
+        .bind(dataset_id)
+        .bind(since)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(|r| Ok(r.try_get("created_at")?)).collect()
+    }
+
     /// How many submissions wait before this one (0 = it is next or running).
     pub async fn queue_position(&self, id: i64) -> AppResult<i64> {
         let row = sqlx::query(

@@ -854,3 +854,52 @@ fn accounts_privacy_and_tokens_on_sqlite() {
 fn accounts_privacy_and_tokens_on_postgres() {
     accounts_privacy_and_tokens(Db::Postgres);
 }
+
+fn fair_use_limit(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "limit");
+    let args = ["--submissions-per-window", "1", "--limit-window-secs", "3"];
+    let server = start(&dir.path().join("data"), &datasets, &db, &args);
+    let first = fixtures().join("results/noisesmall_synthA-test.csv");
+    let second = fixtures().join("results/noisemedium_synthA-test.csv");
+    assert_eq!(
+        upload(&server, "limited", "synthA", &first, None).status(),
+        202
+    );
+    let refused = upload(&server, "limited", "synthA", &second, None);
+    assert_eq!(refused.status(), 429, "{kind:?}");
+    assert!(refused.headers().contains_key("retry-after"));
+    let body: Value = refused.json().expect("json");
+    let retry_at = body["retry_at"].as_i64().expect("retry_at");
+    // Re-sending an identical file is not a new submission and is not limited.
+    assert_eq!(
+        upload(&server, "limited", "synthA", &first, None).status(),
+        200
+    );
+    // Once the window has passed, the next one is accepted.
+    let now = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .expect("clock")
+            .as_millis() as i64
+    };
+    while now() < retry_at {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(
+        upload(&server, "limited", "synthA", &second, None).status(),
+        202,
+        "{kind:?}"
+    );
+}
+
+#[test]
+fn fair_use_limit_on_sqlite() {
+    fair_use_limit(Db::Sqlite);
+}
+
+#[test]
+fn fair_use_limit_on_postgres() {
+    fair_use_limit(Db::Postgres);
+}

@@ -289,6 +289,7 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
         });
     }
 
+    check_fair_use(app, owner.id, row.id).await?;
     let mut preflight = preflight(&dataset, &results, &protocols);
     let ahead = app.store.estimates_ahead(i64::MAX).await?;
     preflight.estimated_seconds =
@@ -327,6 +328,32 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
         submission,
         duplicate: false,
         preflight,
+    })
+}
+
+/// The per-user, per-dataset limit that keeps anyone from tuning on the test set.
+async fn check_fair_use(app: &AppState, owner_id: i64, dataset_id: i64) -> AppResult<()> {
+    let limit = app.config.submissions_per_window as usize;
+    if limit == 0 {
+        return Ok(());
+    }
+    let window = app.config.limit_window_secs as i64 * 1000;
+    let times = app
+        .store
+        .recent_submission_times(owner_id, dataset_id, crate::store::now_ms() - window)
+        .await?;
+    if times.len() < limit {
+        return Ok(());
+    }
+    // The next one is allowed once the oldest of the last `limit` leaves the window.
+    let retry_at = times[times.len() - limit] + window;
+    Err(AppError::TooMany {
+        message: format!(
+            "at most {limit} submissions per dataset within {} s: the next one is allowed in {} s",
+            window / 1000,
+            ((retry_at - crate::store::now_ms()).max(0) + 999) / 1000
+        ),
+        retry_at,
     })
 }
 
