@@ -903,3 +903,41 @@ fn fair_use_limit_on_sqlite() {
 fn fair_use_limit_on_postgres() {
     fair_use_limit(Db::Postgres);
 }
+
+fn login_attempts_are_limited(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "login");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    browser(&server, "dave");
+    browser(&server, "erin");
+    let login = |name: &str, password: &str| {
+        Client::builder()
+            .redirect(reqwest::redirect::Policy::none())
+            .build()
+            .expect("client")
+            .post(format!("{}/login", server.base))
+            .form(&[("name", name), ("password", password)])
+            .send()
+            .expect("login")
+            .status()
+            .as_u16()
+    };
+    for _ in 0..5 {
+        assert_eq!(login("dave", "wrong password!"), 401, "{kind:?}");
+    }
+    // The account is now locked for a while, even with the right password.
+    assert_eq!(login("dave", "correct horse battery"), 429, "{kind:?}");
+    // Other accounts from the same address are not.
+    assert_eq!(login("erin", "correct horse battery"), 303, "{kind:?}");
+}
+
+#[test]
+fn login_attempts_are_limited_on_sqlite() {
+    login_attempts_are_limited(Db::Sqlite);
+}
+
+#[test]
+fn login_attempts_are_limited_on_postgres() {
+    login_attempts_are_limited(Db::Postgres);
+}

@@ -66,7 +66,10 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
-        axum::serve(listener, crate::routes::router(app))
+        // Peer addresses feed the per-address sign-in limit.
+        let service = crate::routes::router(app)
+            .into_make_service_with_connect_info::<std::net::SocketAddr>();
+        axum::serve(listener, service)
             .with_graceful_shutdown(async {
                 let _ = tokio::signal::ctrl_c().await;
             })

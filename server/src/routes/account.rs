@@ -3,7 +3,9 @@
 use askama::Template;
 use askama_web::WebTemplate;
 use axum::Router;
-use axum::extract::{Form, Path, Query, State};
+use std::net::SocketAddr;
+
+use axum::extract::{ConnectInfo, Form, Path, Query, State};
 use axum::http::HeaderMap;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
@@ -73,13 +75,41 @@ struct Credentials {
     next: Option<String>,
 }
 
+/// Sign-in attempts allowed per account, and per address, within `LOGIN_WINDOW_MS`.
+const LOGIN_FAILURES_PER_ACCOUNT: usize = 5;
+const LOGIN_FAILURES_PER_ADDRESS: usize = 20;
+const LOGIN_WINDOW_MS: i64 = 15 * 60 * 1000;
+
+/// Refuses a sign-in while its account or its address has failed too often recently.
+async fn check_login_rate(app: &AppState, keys: &[(String, usize)]) -> AppResult<()> {
+    let since = crate::store::now_ms() - LOGIN_WINDOW_MS;
+    for (key, limit) in keys {
+        let failures = app.store.login_failures(key, since).await?;
+        if failures.len() >= *limit {
+            let retry_at = failures[failures.len() - limit] + LOGIN_WINDOW_MS;
+            return Err(AppError::TooMany {
+                message: "too many failed sign-ins: wait a few minutes and try again".into(),
+                retry_at,
+            });
+        }
+    }
+    Ok(())
+}
+
 async fn login(
     State(app): State<AppState>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
     headers: HeaderMap,
     jar: CookieJar,
     Form(c): Form<Credentials>,
 ) -> AppResult<Response> {
     let next = safe_next(c.next.as_deref());
+    let account_key = format!("user:{}", c.name.trim());
+    let keys = [
+        (account_key.clone(), LOGIN_FAILURES_PER_ACCOUNT),
+        (format!("addr:{}", peer.ip()), LOGIN_FAILURES_PER_ADDRESS),
+    ];
+    check_login_rate(&app, &keys).await?;
     let found = app.store.user_for_login(c.name.trim()).await?;
     // Verification runs on the blocking pool: argon2 is deliberately slow.
     let verified = match found {
@@ -93,6 +123,8 @@ async fn login(
         None => None,
     };
     let Some(user) = verified else {
+        let keys: Vec<String> = keys.into_iter().map(|(k, _)| k).collect();
+        app.store.record_login_failure(&keys).await?;
         let page = LoginPage {
             name: c.name,
             next,
@@ -101,6 +133,7 @@ async fn login(
         };
         return Ok((axum::http::StatusCode::UNAUTHORIZED, page).into_response());
     };
+    app.store.clear_login_failures(&account_key).await?;
     start_session(&app, user.id, &headers, jar, &next).await
 }
 

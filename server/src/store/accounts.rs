@@ -186,6 +186,44 @@ impl Store {
     }
 }
 
+impl Store {
+    /// Failed sign-ins for `key` since `since`, oldest first.
+    pub async fn login_failures(&self, key: &str, since: i64) -> AppResult<Vec<i64>> {
+        let rows =
+            sqlx::query("SELECT at FROM login_failures WHERE key = $1 AND at >= $2 ORDER BY at")
+                .bind(key)
+                .bind(since)
+                .fetch_all(&self.pool)
+                .await?;
+        rows.iter().map(|r| Ok(r.try_get("at")?)).collect()
+    }
+
+    pub async fn record_login_failure(&self, keys: &[String]) -> AppResult<()> {
+        let now = now_ms();
+        for key in keys {
+            sqlx::query("INSERT INTO login_failures (key, at) VALUES ($1, $2)")
+                .bind(key)
+                .bind(now)
+                .execute(&self.pool)
+                .await?;
+        }
+        // Old rows are of no further use.
+        sqlx::query("DELETE FROM login_failures WHERE at < $1")
+            .bind(now - 24 * 3600 * 1000)
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+
+    pub async fn clear_login_failures(&self, key: &str) -> AppResult<()> {
+        sqlx::query("DELETE FROM login_failures WHERE key = $1")
+            .bind(key)
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+}
+
 fn user(r: &sqlx::any::AnyRow) -> Result<User, sqlx::Error> {
     Ok(User {
         id: r.try_get("id")?,

@@ -1,0 +1,6 @@
+-- Failed sign-ins, per account (`user:NAME`) and per address (`addr:IP`), for rate limiting.
+CREATE TABLE login_failures (
+    key TEXT NOT NULL,
+    at BIGINT NOT NULL
+);
+CREATE INDEX login_failures_key ON login_failures (key, at);
