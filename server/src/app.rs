@@ -67,21 +67,25 @@ impl App {
             .collect();
         folders.sort();
         for folder in folders {
-            let path = folder.clone();
-            let loaded = tokio::task::spawn_blocking(move || Dataset::load(&path)).await?;
-            match loaded {
-                Ok(ds) => {
-                    let row = describe(&ds, &folder);
-                    let id = self.store.upsert_dataset(&row).await?;
-                    tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered");
-                    self.datasets.lock().await.insert(id, Arc::new(ds));
-                }
-                Err(e) => {
-                    tracing::error!(folder = %folder.display(), error = %e, "dataset skipped")
-                }
+            if let Err(e) = self.register_dataset(&folder).await {
+                tracing::error!(folder = %folder.display(), error = %e, "dataset skipped");
             }
         }
         Ok(())
+    }
+
+    /// Loads the BOP dataset in `folder` and serves it (again, if it had been retired).
+    pub async fn register_dataset(&self, folder: &Path) -> AppResult<DatasetRow> {
+        let path = folder.to_path_buf();
+        let ds = tokio::task::spawn_blocking(move || Dataset::load(&path))
+            .await
+            .map_err(|e| AppError::Internal(e.to_string()))?
+            .map_err(|e| AppError::BadRequest(format!("not a usable BOP dataset: {e}")))?;
+        let mut row = describe(&ds, folder);
+        row.id = self.store.upsert_dataset(&row).await?;
+        tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered");
+        self.datasets.lock().await.insert(row.id, Arc::new(ds));
+        Ok(row)
     }
 
     /// The loaded dataset of a registered id (loaded from disk on first use by this process).

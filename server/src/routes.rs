@@ -1,6 +1,7 @@
 //! The HTTP surface: pages, the JSON API, static files, and the tower-http layers around them.
 
 pub mod account;
+pub mod admin;
 pub mod api;
 pub mod pages;
 pub mod submissions;
@@ -39,6 +40,7 @@ pub fn router(app: AppState) -> Router {
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
+        .merge(admin::router())
         .merge(pages)
         .merge(static_files)
         .layer(CompressionLayer::new())

@@ -145,6 +145,8 @@ pub struct SubmissionRow {
     pub hardware: String,
     #[serde(skip)]
     pub owner_id: Option<i64>,
+    /// Hidden by an administrator: shown to its owner and the administrators only.
+    pub hidden: bool,
     #[serde(skip)]
     pub preflight_json: String,
 }
@@ -161,6 +163,14 @@ pub struct NewSubmission<'a> {
     pub hardware: &'a str,
     pub preflight_json: &'a str,
     pub owner_id: i64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct AuditEntry {
+    pub actor: String,
+    pub action: String,
+    pub target: String,
+    pub at: i64,
 }
 
 /// One protocol's scores of a submission, as stored.
@@ -208,7 +218,7 @@ fn protocols_from_text(s: &str) -> Vec<ProtocolName> {
 const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, d.name AS dataset, \
     s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, s.estimates_count, s.status, \
     s.progress, s.error, s.fault, s.attempts, s.created_at, s.started_at, s.finished_at, \
-    s.evaluator_version, s.hardware, s.owner_id, s.preflight_json \
+    s.evaluator_version, s.hardware, s.owner_id, s.hidden, s.preflight_json \
     FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
 
 fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
@@ -235,6 +245,7 @@ fn submission(row: &AnyRow) -> Result<SubmissionRow, sqlx::Error> {
         evaluator_version: row.try_get("evaluator_version")?,
         hardware: row.try_get("hardware")?,
         owner_id: row.try_get("owner_id")?,
+        hidden: row.try_get::<i64, _>("hidden")? != 0,
         preflight_json: row.try_get("preflight_json")?,
     })
 }
@@ -459,7 +470,7 @@ impl Store {
     pub async fn methods(&self) -> AppResult<Vec<MethodRow>> {
         let rows = sqlx::query(
             "SELECT * FROM methods m WHERE EXISTS \
-             (SELECT 1 FROM submissions s WHERE s.method_id = m.id AND s.public = 1) ORDER BY m.name",
+             (SELECT 1 FROM submissions s WHERE s.method_id = m.id AND s.public = 1 AND s.hidden = 0) ORDER BY m.name",
         )
         .fetch_all(&self.pool)
         .await?;
@@ -524,7 +535,7 @@ impl Store {
     /// Public submissions of a method, newest first.
     pub async fn submissions_of_method(&self, method_id: i64) -> AppResult<Vec<SubmissionRow>> {
         let sql = format!(
-            "SELECT {SUBMISSION_COLUMNS} WHERE s.method_id = $1 AND s.public = 1 ORDER BY s.id DESC"
+            "SELECT {SUBMISSION_COLUMNS} WHERE s.method_id = $1 AND s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC"
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(method_id)
@@ -535,8 +546,9 @@ impl Store {
 
     /// Public submissions, newest first.
     pub async fn recent_submissions(&self, limit: i64) -> AppResult<Vec<SubmissionRow>> {
-        let sql =
-            format!("SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 ORDER BY s.id DESC LIMIT $1");
+        let sql = format!(
+            "SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC LIMIT $1"
+        );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(limit)
             .fetch_all(&self.pool)
@@ -775,6 +787,94 @@ impl Store {
         Ok(done.rows_affected() == 1)
     }
 
+    // ---- administration --------------------------------------------------------------------
+
+    pub async fn set_hidden(&self, id: i64, hidden: bool) -> AppResult<bool> {
+        let done = sqlx::query("UPDATE submissions SET hidden = $1 WHERE id = $2")
+            .bind(hidden as i64)
+            .bind(id)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
+    /// until the new ones replace them.
+    pub async fn rerun(&self, id: i64) -> AppResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET status = 'queued', progress = 0, attempts = 0, error = NULL, \
+             fault = NULL, worker = NULL, lease_until = NULL WHERE id = $1 AND status IN ('done', 'failed')",
+        )
+        .bind(id)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Deletes a submission and its scores; returns the file's hash when no other submission
+    /// uses the same file, so the caller can remove it.
+    pub async fn delete_submission(&self, id: i64) -> AppResult<Option<Option<String>>> {
+        let Some(sub) = self.submission(id).await? else {
+            return Ok(None);
+        };
+        let mut tx = self.pool.begin().await?;
+        sqlx::query("DELETE FROM scores WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query("DELETE FROM submissions WHERE id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        let others = sqlx::query("SELECT COUNT(*) AS n FROM submissions WHERE file_sha256 = $1")
+            .bind(&sub.file_sha256)
+            .fetch_one(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        let unused = others.try_get::<i64, _>("n")? == 0;
+        Ok(Some(unused.then_some(sub.file_sha256)))
+    }
+
+    pub async fn retire_dataset(&self, name: &str) -> AppResult<bool> {
+        let done = sqlx::query("UPDATE datasets SET retired = 1 WHERE name = $1 AND retired = 0")
+            .bind(name)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    pub async fn audit(&self, actor_id: i64, action: &str, target: &str) -> AppResult<()> {
+        sqlx::query("INSERT INTO audit_log (actor_id, action, target, at) VALUES ($1, $2, $3, $4)")
+            .bind(actor_id)
+            .bind(action)
+            .bind(target)
+            .bind(now_ms())
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+
+    /// The latest administrator actions: (who, action, target, when).
+    pub async fn audit_log(&self, limit: i64) -> AppResult<Vec<AuditEntry>> {
+        let rows = sqlx::query(
+            "SELECT u.name AS actor, a.action, a.target, a.at FROM audit_log a \
+             JOIN users u ON u.id = a.actor_id ORDER BY a.id DESC LIMIT $1",
+        )
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| {
+                Ok(AuditEntry {
+                    actor: r.try_get("actor")?,
+                    action: r.try_get("action")?,
+                    target: r.try_get("target")?,
+                    at: r.try_get("at")?,
+                })
+            })
+            .collect()
+    }
+
     // ---- scores ----------------------------------------------------------------------------
 
     pub async fn scores_of_submission(&self, id: i64) -> AppResult<Vec<(ScoreRow, String)>> {
@@ -825,11 +925,11 @@ impl Store {
              s.dataset_id, d.name AS dataset, s.finished_at \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
-             WHERE sc.protocol = $1 AND s.status = 'done' AND s.public = 1 AND d.retired = 0 \
+             WHERE sc.protocol = $1 AND s.status = 'done' AND s.public = 1 AND s.hidden = 0 AND d.retired = 0 \
              AND ($2 < 0 OR s.dataset_id = $2) \
              AND s.id = (SELECT MAX(s2.id) FROM submissions s2 JOIN scores sc2 ON sc2.submission_id = s2.id \
                  WHERE s2.method_id = s.method_id AND s2.dataset_id = s.dataset_id \
-                 AND s2.status = 'done' AND s2.public = 1 AND sc2.protocol = $1) \
+                 AND s2.status = 'done' AND s2.public = 1 AND s2.hidden = 0 AND sc2.protocol = $1) \
              ORDER BY sc.score DESC, m.name",
         )
         .bind(protocol.as_str())

@@ -253,7 +253,7 @@ pub async fn submission(
     viewer: &crate::auth::Viewer,
 ) -> AppResult<SubmissionView> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !submission.public && !viewer.can_see(submission.owner_id) {
+    if (!submission.public || submission.hidden) && !viewer.can_see(submission.owner_id) {
         return Err(AppError::NotFound);
     }
     let queue_position = match submission.status {

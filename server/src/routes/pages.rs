@@ -167,6 +167,8 @@ struct SubmissionPage {
     warnings: Vec<String>,
     bop19: Option<serde_json::Value>,
     eccv18: Option<serde_json::Value>,
+    /// For an administrator's browser: the CSRF token of the moderation buttons.
+    admin_csrf: Option<String>,
 }
 
 impl SubmissionPage {
@@ -207,6 +209,11 @@ async fn submission(
         eccv18: view.scores.get("eccv18").cloned(),
         warnings,
         view,
+        admin_csrf: viewer
+            .session
+            .as_ref()
+            .filter(|s| s.user.is_admin)
+            .map(|s| s.csrf_token.clone()),
     })
 }
 
