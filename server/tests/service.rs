@@ -155,10 +155,17 @@ fn start(data_dir: &Path, datasets: &Path, db: &TestDb, extra: &[&str]) -> Serve
         .arg("--datasets")
         .arg(datasets)
         .args(extra)
-        .env("RUST_LOG", "warn")
+        // Request traces included, so tests can check that no secret ever reaches the log.
+        .env("RUST_LOG", "info,tower_http=debug")
         .env_remove("DATABASE_URL")
         .stdout(Stdio::piped())
-        .stderr(Stdio::inherit());
+        .stderr(Stdio::from(
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(data_dir.join("server.log"))
+                .expect("log file"),
+        ));
     if let Some(url) = &db.url {
         cmd.env("DATABASE_URL", url);
     }
@@ -829,7 +836,20 @@ fn accounts_privacy_and_tokens(kind: Db) {
         "{kind:?}: revoked token accepted"
     );
 
-    // Secrets are never stored in clear.
+    // Secrets never reach the log, and are never stored in clear.
+    let log = std::fs::read_to_string(data.join("server.log")).expect("log");
+    assert!(
+        log.contains("/api/v1/submissions"),
+        "the log has the requests"
+    );
+    for secret in [
+        token.as_str(),
+        server.token.as_str(),
+        bob.as_str(),
+        "correct horse battery",
+    ] {
+        assert!(!log.contains(secret), "{kind:?}: a secret is in the log");
+    }
     let hashes = column(
         &db,
         &data,
@@ -1097,4 +1117,96 @@ fn administration_on_sqlite() {
 #[test]
 fn administration_on_postgres() {
     administration(Db::Postgres);
+}
+
+fn hostile_input(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "hostile");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    let base = server.base.clone();
+    let script = "<script>alert(1)</script>";
+    let method = "x'); DROP TABLE users; --<script>alert(1)</script>";
+    // A file name with path separators and `..` is kept as its last component.
+    let tricky = dir.path().join("evil.csv");
+    std::fs::copy(fixtures().join("results/gtexact_synthA-test.csv"), &tricky).expect("copy");
+    let form = multipart::Form::new()
+        .text("method", method)
+        .text("dataset", "synthA")
+        .text(
+            "description",
+            format!("{script}<img src=x onerror=alert(2)>"),
+        )
+        .text("hardware", "\"><script>alert(3)</script>")
+        .part(
+            "file",
+            multipart::Part::file(&tricky)
+                .expect("file")
+                .file_name("../../etc/passwd"),
+        );
+    let r = client()
+        .post(format!("{base}/api/v1/submissions"))
+        .bearer_auth(&server.token)
+        .multipart(form)
+        .send()
+        .expect("upload");
+    assert_eq!(r.status(), 202, "{kind:?}");
+    let sub: Value = r.json().expect("json");
+    assert_eq!(sub["submission"]["file_name"], "passwd");
+    assert_eq!(sub["submission"]["method"], method, "stored as given");
+    let id = sub["id"].as_i64().expect("id");
+    wait_done(&base, id, Duration::from_secs(60));
+    // Shown harmlessly: escaped on every page.
+    let method_id = sub["submission"]["method_id"].as_i64().expect("method id");
+    for page in [
+        format!("{base}/submissions/{id}"),
+        format!("{base}/methods/{method_id}"),
+        format!("{base}/leaderboards/bop19"),
+    ] {
+        let html = get_as(&page, "").text().expect("html");
+        assert!(
+            !html.contains("<script>alert"),
+            "{kind:?}: {page} runs the script"
+        );
+        assert!(
+            html.contains("&lt;script&gt;") || html.contains("&#60;script&#62;"),
+            "{kind:?}: {page}"
+        );
+    }
+    // The database is intact: accounts still work.
+    assert_eq!(post_without_file(&server, &server.token), 400);
+    // Giant fields are refused with a clear 4xx.
+    let giant = "a".repeat(20_000);
+    let r = upload_with(
+        &server,
+        &server.token,
+        &[
+            ("method", "big"),
+            ("dataset", "synthA"),
+            ("description", giant.as_str()),
+        ],
+        &tricky,
+    );
+    assert_eq!(r.status(), 400);
+    assert!(r.text().expect("body").contains("longer than"));
+    let r = upload_with(
+        &server,
+        &server.token,
+        &[("method", &"m".repeat(500)), ("dataset", "synthA")],
+        &tricky,
+    );
+    assert_eq!(r.status(), 400);
+    // Nothing escaped the data directory.
+    assert!(!dir.path().join("etc").exists());
+}
+
+#[test]
+fn hostile_input_on_sqlite() {
+    hostile_input(Db::Sqlite);
+}
+
+#[test]
+fn hostile_input_on_postgres() {
+    hostile_input(Db::Postgres);
 }
