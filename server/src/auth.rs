@@ -57,6 +57,22 @@ pub fn same_secret(a: &str, b: &str) -> bool {
             == 0
 }
 
+/// Whether a form post comes from our own pages. Browsers send `Origin` with every form post;
+/// a post whose origin names another host is cross-site (login CSRF and the like). Requests
+/// without `Origin` come from scripts, which cannot ride on a victim's cookies.
+pub fn same_origin(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else {
+        return true;
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or_default();
+    origin
+        .split_once("://")
+        .is_some_and(|(_, rest)| rest.trim_end_matches('/') == host)
+}
+
 /// The requester.
 #[derive(Clone, Debug, Default)]
 pub struct Viewer {

@@ -948,7 +948,15 @@ fn login_attempts_are_limited(kind: Db) {
     }
     // The account is now locked for a while, even with the right password.
     assert_eq!(login("dave", "correct horse battery"), 429, "{kind:?}");
-    // Other accounts from the same address are not.
+    // A sign-in posted from another site's page is refused.
+    let cross = client()
+        .post(format!("{}/login", server.base))
+        .header("Origin", "http://evil.example")
+        .form(&[("name", "erin"), ("password", "correct horse battery")])
+        .send()
+        .expect("login");
+    assert_eq!(cross.status(), 403, "{kind:?}");
+    // Other accounts from the same address are not locked.
     assert_eq!(login("erin", "correct horse battery"), 303, "{kind:?}");
 }
 
@@ -1070,6 +1078,52 @@ fn administration(kind: Db) {
             .contains("synthA")
     );
 
+    // The same from the datasets page, in an administrator's browser.
+    let b = Client::builder()
+        .cookie_store(true)
+        .build()
+        .expect("client");
+    let page = b
+        .post(format!("{base}/login"))
+        .form(&[
+            ("name", "root"),
+            ("password", "root-secret-password"),
+            ("next", "/datasets"),
+        ])
+        .send()
+        .expect("login")
+        .text()
+        .expect("html");
+    let csrf = csrf_of(&page);
+    let r = b
+        .post(format!("{base}/admin/datasets/synthA/retire"))
+        .form(&[("csrf", csrf.as_str())])
+        .send()
+        .expect("retire");
+    assert!(r.status().is_success());
+    assert!(
+        !get_json(&format!("{base}/api/v1/datasets"))
+            .to_string()
+            .contains("synthA")
+    );
+    let forged = b
+        .post(format!("{base}/admin/datasets"))
+        .form(&[("csrf", "forged"), ("name", "synthA")])
+        .send()
+        .expect("add");
+    assert_eq!(forged.status(), 403);
+    let r = b
+        .post(format!("{base}/admin/datasets"))
+        .form(&[("csrf", csrf.as_str()), ("name", "synthA")])
+        .send()
+        .expect("add");
+    assert!(r.status().is_success());
+    assert!(
+        get_json(&format!("{base}/api/v1/datasets"))
+            .to_string()
+            .contains("synthA")
+    );
+
     // Deleted: gone for everyone, with its file.
     assert!(action(&root, "delete").status().is_success());
     assert_eq!(
@@ -1099,6 +1153,8 @@ fn administration(kind: Db) {
         actions,
         [
             "delete",
+            "add dataset",
+            "retire dataset",
             "add dataset",
             "retire dataset",
             "rerun",

@@ -103,6 +103,9 @@ async fn login(
     jar: CookieJar,
     Form(c): Form<Credentials>,
 ) -> AppResult<Response> {
+    if !auth::same_origin(&headers) {
+        return Err(AppError::Forbidden("cross-site sign-in refused".into()));
+    }
     let next = safe_next(c.next.as_deref());
     let account_key = format!("user:{}", c.name.trim());
     let keys = [
@@ -158,6 +161,11 @@ async fn register(
     jar: CookieJar,
     Form(c): Form<Credentials>,
 ) -> AppResult<Response> {
+    if !auth::same_origin(&headers) {
+        return Err(AppError::Forbidden(
+            "cross-site registration refused".into(),
+        ));
+    }
     let next = safe_next(c.next.as_deref());
     let name = c.name.trim().to_string();
     let problem = if name.is_empty() || name.chars().count() > 40 {

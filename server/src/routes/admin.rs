@@ -30,6 +30,8 @@ pub fn router() -> Router<AppState> {
             "/admin/submissions/{id}/{action}",
             post(page_submission_action),
         )
+        .route("/admin/datasets", post(page_add_dataset))
+        .route("/admin/datasets/{name}/retire", post(page_retire_dataset))
 }
 
 fn admin(viewer: &Viewer) -> AppResult<&User> {
@@ -110,6 +112,34 @@ async fn page_submission_action(
 struct NewDataset {
     /// A folder name inside the datasets directory.
     name: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+/// Serves the dataset in a folder of the datasets directory, named by a plain folder name.
+async fn add_dataset(
+    app: &AppState,
+    actor: &User,
+    name: &str,
+) -> AppResult<crate::store::DatasetRow> {
+    // Only a plain folder name: no path separators, no `..`.
+    if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+        return Err(AppError::BadRequest(
+            "`name` must be a folder name inside the datasets directory".into(),
+        ));
+    }
+    let row = app
+        .register_dataset(&app.config.datasets_dir().join(name))
+        .await?;
+    app.store.audit(actor.id, "add dataset", &row.name).await?;
+    Ok(row)
+}
+
+async fn retire_dataset(app: &AppState, actor: &User, name: &str) -> AppResult<()> {
+    if !app.store.retire_dataset(name).await? {
+        return Err(AppError::NotFound);
+    }
+    app.store.audit(actor.id, "retire dataset", name).await
 }
 
 async fn api_add_dataset(
@@ -118,16 +148,7 @@ async fn api_add_dataset(
     Json(d): Json<NewDataset>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
-    // Only a plain folder name: no path separators, no `..`.
-    if d.name.is_empty() || d.name.contains(['/', '\\']) || d.name.starts_with('.') {
-        return Err(AppError::BadRequest(
-            "`name` must be a folder name inside the datasets directory".into(),
-        ));
-    }
-    let row = app
-        .register_dataset(&app.config.datasets_dir().join(&d.name))
-        .await?;
-    app.store.audit(actor.id, "add dataset", &row.name).await?;
+    let row = add_dataset(&app, actor, &d.name).await?;
     Ok(Json(json!({ "dataset": row })))
 }
 
@@ -137,11 +158,31 @@ async fn api_retire_dataset(
     Path(name): Path<String>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
-    if !app.store.retire_dataset(&name).await? {
-        return Err(AppError::NotFound);
-    }
-    app.store.audit(actor.id, "retire dataset", &name).await?;
+    retire_dataset(&app, actor, &name).await?;
     Ok(Json(json!({ "ok": true, "retired": name })))
+}
+
+async fn page_add_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Form(d): Form<NewDataset>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&d.csrf)?;
+    add_dataset(&app, actor, d.name.trim()).await?;
+    Ok(Redirect::to("/datasets").into_response())
+}
+
+async fn page_retire_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    retire_dataset(&app, actor, &name).await?;
+    Ok(Redirect::to("/datasets").into_response())
 }
 
 async fn api_audit(

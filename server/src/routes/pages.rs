@@ -133,11 +133,18 @@ async fn leaderboard_page(
 #[template(path = "datasets.html")]
 struct DatasetsPage {
     datasets: Vec<DatasetRow>,
+    /// For an administrator's browser: the CSRF token of the add and retire forms.
+    admin_csrf: Option<String>,
 }
 
-async fn datasets(State(app): State<AppState>) -> AppResult<DatasetsPage> {
+async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<DatasetsPage> {
     Ok(DatasetsPage {
         datasets: app.store.datasets().await?,
+        admin_csrf: viewer
+            .session
+            .as_ref()
+            .filter(|s| s.user.is_admin)
+            .map(|s| s.csrf_token.clone()),
     })
 }
 
