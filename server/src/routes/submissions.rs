@@ -226,12 +226,18 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
         .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{}`", upload.dataset)))?;
     let dataset = app.dataset(&row).await?;
 
-    // Parsing is CPU work: off the async threads.
     let tmp_path: PathBuf = file.tmp.to_path_buf();
-    let parsed = tokio::task::spawn_blocking(move || results::load_results(&tmp_path))
-        .await
-        .map_err(|e| AppError::Internal(e.to_string()))?;
-    let results = match parsed {
+    // Parsing and the coverage check are CPU work: off the async threads, in one go.
+    let (ds, ps) = (dataset.clone(), protocols.clone());
+    let parsed = tokio::task::spawn_blocking(move || {
+        results::load_results(&tmp_path).map(|r| {
+            let p = preflight(&ds, &r, &ps);
+            (r.estimates.len(), p)
+        })
+    })
+    .await
+    .map_err(|e| AppError::Internal(e.to_string()))?;
+    let (estimates_count, mut preflight) = match parsed {
         Ok(r) => r,
         Err(evaluator::Error::Results(problems)) => {
             let mut list: Vec<LineProblem> = problems
@@ -255,7 +261,7 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
         }
         Err(e) => return Err(AppError::Internal(e.to_string())),
     };
-    if results.estimates.is_empty() {
+    if estimates_count == 0 {
         return Err(AppError::Invalid {
             message: format!("{} contains no estimate", file.name),
             problems: Vec::new(),
@@ -290,7 +296,6 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
     }
 
     check_fair_use(app, owner.id, row.id).await?;
-    let mut preflight = preflight(&dataset, &results, &protocols);
     let ahead = app.store.estimates_ahead(i64::MAX).await?;
     preflight.estimated_seconds =
         (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64) * SECONDS_PER_ESTIMATE;
@@ -312,7 +317,7 @@ pub async fn accept(app: &AppState, upload: Upload, owner: &User) -> AppResult<A
             file_name: &file.name,
             file_sha256: &file.sha256,
             file_size: file.size as i64,
-            estimates_count: results.estimates.len() as i64,
+            estimates_count: estimates_count as i64,
             hardware: &upload.hardware,
             preflight_json: &preflight_json,
             owner_id: owner.id,
