@@ -2,6 +2,7 @@
 
 use std::str::FromStr;
 
+use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
@@ -64,10 +65,12 @@ async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde
 async fn create_submission(
     State(app): State<AppState>,
     viewer: Viewer,
-    multipart: Multipart,
+    multipart: Result<Multipart, MultipartRejection>,
 ) -> AppResult<Response> {
     // Refused before a byte of the body is read.
     let owner = viewer.require_user()?.clone();
+    // Credentials are checked before the body is looked at, even a malformed one.
+    let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
     let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let Accepted {
         submission,

@@ -6,6 +6,7 @@ use std::str::FromStr;
 use askama::Template;
 use askama_web::WebTemplate;
 use axum::Router;
+use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Redirect, Response};
@@ -257,10 +258,12 @@ async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<R
 async fn submit(
     State(app): State<AppState>,
     viewer: Viewer,
-    multipart: Multipart,
+    multipart: Result<Multipart, MultipartRejection>,
 ) -> AppResult<Response> {
-    // Anonymous posts are refused before the body is read; the token is checked once read.
+    // Anonymous posts are refused before the body is looked at, even a malformed one; the CSRF
+    // token, which travels in the body, is checked once read.
     viewer.require_user()?;
+    let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
     let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let owner = viewer.check_csrf(&upload.csrf)?.clone();
     let typed = SubmitPage {
