@@ -41,7 +41,6 @@ pub fn document() -> Value {
                     "responses": {
                         "202": { "description": "queued: {id, submission, preflight, url}" },
                         "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
-                        "409": { "description": "the method name belongs to another account" },
                         "200": { "description": "the same file was already submitted for this method: the existing submission" },
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the file is larger than the limit" },

@@ -404,24 +404,21 @@ impl Store {
 
     /// The method of that name, created with the given metadata if new; the metadata of an
     /// existing method is updated where new values are given.
-    /// A method belongs to the user who first submitted it; others get a conflict.
+    /// The owner's method of that name, created with the given metadata if new (names are
+    /// unique per account, so another account's methods stay invisible).
     pub async fn ensure_method(
         &self,
         name: &str,
         meta: &MethodMeta,
         owner_id: i64,
     ) -> AppResult<i64> {
-        let existing = sqlx::query("SELECT id, owner_id FROM methods WHERE name = $1")
+        let existing = sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
+            .bind(owner_id)
             .bind(name)
             .fetch_optional(&self.pool)
             .await?;
         if let Some(row) = existing {
             let id: i64 = row.try_get("id")?;
-            if row.try_get::<Option<i64>, _>("owner_id")? != Some(owner_id) {
-                return Err(AppError::Conflict(format!(
-                    "the method name `{name}` belongs to another account"
-                )));
-            }
             for (column, value) in [
                 ("description", &meta.description),
                 ("paper_url", &meta.paper_url),

@@ -761,14 +761,24 @@ fn accounts_privacy_and_tokens(kind: Db) {
             "{kind:?}: {listing} lists a private method"
         );
     }
-    // Another account cannot submit under a method name that is taken.
-    let taken = upload_with(
+    // Method names are per account: the same name elsewhere is a different method, and
+    // nothing tells bob that a private one of that name exists.
+    let own = upload_with(
         &server,
         &bob,
         &[("method", "secret-net"), ("dataset", "synthA")],
         &file,
     );
-    assert_eq!(taken.status(), 409);
+    assert_eq!(own.status(), 202, "{kind:?}");
+    let own: Value = own.json().expect("json");
+    assert_eq!(
+        own["duplicate"], false,
+        "not matched to the other account's submission"
+    );
+    assert_ne!(
+        own["submission"]["method_id"],
+        get_as(&url, &server.token).json::<Value>().expect("json")["method_id"]
+    );
 
     // Forms need the session's CSRF token: missing or forged ones change nothing.
     let (carol, csrf) = browser(&server, "carol");
