@@ -19,6 +19,8 @@ pub mod render;
 pub mod report;
 pub mod results;
 pub mod score;
+pub mod selection;
+pub mod stats;
 pub mod visibility;
 
 pub use dataset::Dataset;

@@ -3,7 +3,46 @@
 //! lowest error, if that error is strictly below the threshold of correctness.
 
 use crate::dataset::Image;
-use crate::protocol::NTop;
+
+/// Which estimates count per target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NTop {
+    /// The `n` highest-scored estimates (the paper: 1).
+    Top(u32),
+    /// As many as the target has instances (bop_toolkit's `-1`).
+    InstCount,
+    /// Every estimate (bop_toolkit's `0`).
+    All,
+}
+
+impl NTop {
+    /// bop_toolkit's integer encoding, used in reports and flags.
+    pub fn as_i64(self) -> i64 {
+        match self {
+            NTop::Top(n) => n as i64,
+            NTop::InstCount => -1,
+            NTop::All => 0,
+        }
+    }
+
+    /// How many of a target's estimates count, for a target with `inst_count` instances.
+    pub fn keep(self, inst_count: u32) -> usize {
+        match self {
+            NTop::Top(n) => n as usize,
+            NTop::InstCount => inst_count as usize,
+            NTop::All => usize::MAX,
+        }
+    }
+
+    pub fn from_i64(n: i64) -> Result<Self, String> {
+        match n {
+            -1 => Ok(NTop::InstCount),
+            0 => Ok(NTop::All),
+            n if n > 0 && n <= u32::MAX as i64 => Ok(NTop::Top(n as u32)),
+            n => Err(format!("n_top must be -1, 0 or positive, not {n}")),
+        }
+    }
+}
 
 /// The errors of one evaluated estimate against every ground-truth instance of its object in
 /// its image (instances in increasing gt id order, also the invisible ones).

@@ -2,7 +2,7 @@
 //! target considers, computes their errors image by image in parallel (rayon, on the caller's
 //! pool), then matches and scores at every threshold.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
@@ -13,11 +13,12 @@ use crate::matching::{EstimateErrors, valid_gts};
 use crate::math::{Pose, Pt3};
 use crate::pose_error::vsd::{GtView, TestImage, vsd};
 use crate::pose_error::{self, sphere_projections_overlap, spheres_overlap};
-use crate::protocol::{ErrorKind, NTop, Protocol};
+use crate::protocol::{Column, ErrorKind, Protocol, columns, normalised_error};
 use crate::render::{DepthWindow, Renderer};
 use crate::report::{self, Report};
 use crate::results::Results;
 use crate::score::{ScoredImage, Scores, localization_scores};
+use crate::selection::{ImageWork, select_estimates};
 
 /// Told how much work there is and how much is done; the CLI draws a bar, the service stores
 /// a percentage.
@@ -32,17 +33,6 @@ pub struct NoProgress;
 impl Progress for NoProgress {
     fn start(&self, _: u64) {}
     fn advance(&self, _: u64) {}
-}
-
-/// One column of per-estimate errors: an error type, and for VSD one of its taus.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Column {
-    /// Index into `Protocol::errors`.
-    pub error: usize,
-    /// For VSD, the tau of this column.
-    pub tau: Option<f64>,
-    /// bop_toolkit's error signature, e.g. `error=vsd_ntop=-1_delta=15.000_tau=0.050`.
-    pub signature: String,
 }
 
 /// Everything an evaluation computed: the report, and the raw errors behind it.
@@ -77,18 +67,6 @@ impl Evaluation {
             |e, i| normalised_error(dataset, kind, e, e.errors[column][i]),
         )
         .scores
-    }
-}
-
-/// The error compared with thresholds: VSD as is, MSSD, ADD, ADI and AD as a fraction of the
-/// object's diameter, MSPD in pixels at 640 px image width.
-pub fn normalised_error(dataset: &Dataset, kind: &ErrorKind, e: &EstimateErrors, raw: f64) -> f64 {
-    match kind {
-        ErrorKind::Vsd(_) => raw,
-        ErrorKind::Mspd => 640.0 / dataset.image_size.0 as f64 * raw,
-        ErrorKind::Mssd | ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad => {
-            raw / dataset.objects[&e.obj_id].info.diameter
-        }
     }
 }
 
@@ -166,109 +144,6 @@ pub fn evaluate(
         errors,
         images: scored,
     })
-}
-
-/// The error columns a protocol computes, in a fixed order.
-pub fn columns(protocol: &Protocol) -> Vec<Column> {
-    let n_top = protocol.n_top.as_i64();
-    let mut cols = Vec::new();
-    for (i, spec) in protocol.errors.iter().enumerate() {
-        match &spec.kind {
-            ErrorKind::Vsd(p) => {
-                for &tau in &p.taus {
-                    cols.push(Column {
-                        error: i,
-                        tau: Some(tau),
-                        signature: format!(
-                            "error=vsd_ntop={n_top}_delta={:.3}_tau={tau:.3}",
-                            p.delta
-                        ),
-                    });
-                }
-            }
-            kind => cols.push(Column {
-                error: i,
-                tau: None,
-                signature: format!("error={}_ntop={n_top}", kind.name()),
-            }),
-        }
-    }
-    cols
-}
-
-/// The estimates each target considers, grouped by image.
-pub(crate) struct Selection {
-    pub images: Vec<ImageWork>,
-    /// Estimates evaluated (the first n_top of each target).
-    pub evaluated: usize,
-    /// Estimates for images or objects that are not test targets.
-    pub ignored: usize,
-    /// Targets with no estimate at all.
-    pub targets_without_estimate: usize,
-}
-
-pub(crate) struct ImageWork {
-    pub scene_id: u32,
-    pub im_id: u32,
-    /// (object, inst_count) of the image's targets, in the targets file's order.
-    pub targets: Vec<(u32, u32)>,
-    /// Per target object: (index into the results, est_id) in decreasing score order.
-    pub estimates: Vec<(u32, Vec<(usize, u32)>)>,
-}
-
-fn select_estimates(dataset: &Dataset, results: &Results, n_top: NTop) -> Selection {
-    // Rows of each (scene, image, object) in file order; est_id is the position.
-    let mut rows: HashMap<(u32, u32, u32), Vec<usize>> = HashMap::new();
-    for (i, e) in results.estimates.iter().enumerate() {
-        rows.entry((e.scene_id, e.im_id, e.obj_id))
-            .or_default()
-            .push(i);
-    }
-    let mut images: BTreeMap<(u32, u32), ImageWork> = BTreeMap::new();
-    let (mut evaluated, mut used, mut without) = (0, 0, 0);
-    for t in &dataset.targets {
-        let work = images
-            .entry((t.scene_id, t.im_id))
-            .or_insert_with(|| ImageWork {
-                scene_id: t.scene_id,
-                im_id: t.im_id,
-                targets: Vec::new(),
-                estimates: Vec::new(),
-            });
-        if work.targets.iter().any(|(o, _)| *o == t.obj_id) {
-            continue; // A duplicated target line adds nothing.
-        }
-        work.targets.push((t.obj_id, t.inst_count));
-        let Some(idx) = rows.get(&(t.scene_id, t.im_id, t.obj_id)) else {
-            without += 1;
-            continue;
-        };
-        used += idx.len();
-        let mut sorted: Vec<(usize, u32)> = idx
-            .iter()
-            .enumerate()
-            .map(|(est_id, &i)| (i, est_id as u32))
-            .collect();
-        // Stable: ties keep file order, as Python's sorted(reverse=True) does.
-        sorted.sort_by(|a, b| {
-            let (sa, sb) = (results.estimates[a.0].score, results.estimates[b.0].score);
-            sb.partial_cmp(&sa).unwrap_or(std::cmp::Ordering::Equal)
-        });
-        let keep = match n_top {
-            NTop::Top(n) => n as usize,
-            NTop::InstCount => t.inst_count as usize,
-            NTop::All => usize::MAX,
-        };
-        sorted.truncate(keep);
-        evaluated += sorted.len();
-        work.estimates.push((t.obj_id, sorted));
-    }
-    Selection {
-        images: images.into_values().collect(),
-        evaluated,
-        ignored: results.estimates.len() - used,
-        targets_without_estimate: without,
-    }
 }
 
 /// What every error needs of an object, computed once per evaluation.

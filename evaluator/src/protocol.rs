@@ -4,10 +4,13 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::dataset::Dataset;
+use crate::matching::EstimateErrors;
+pub use crate::matching::NTop;
 use crate::pose_error::vsd::VsdParams;
 use crate::visibility::VisibMode;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ProtocolName {
     Eccv18,
@@ -30,37 +33,6 @@ impl std::str::FromStr for ProtocolName {
             "eccv18" => Ok(ProtocolName::Eccv18),
             "bop19" => Ok(ProtocolName::Bop19),
             other => Err(format!("unknown protocol `{other}` (eccv18 or bop19)")),
-        }
-    }
-}
-
-/// Which estimates count per target.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum NTop {
-    /// The `n` highest-scored estimates (the paper: 1).
-    Top(u32),
-    /// As many as the target has instances (bop_toolkit's `-1`).
-    InstCount,
-    /// Every estimate (bop_toolkit's `0`).
-    All,
-}
-
-impl NTop {
-    /// bop_toolkit's integer encoding, used in reports and flags.
-    pub fn as_i64(self) -> i64 {
-        match self {
-            NTop::Top(n) => n as i64,
-            NTop::InstCount => -1,
-            NTop::All => 0,
-        }
-    }
-
-    pub fn from_i64(n: i64) -> Result<Self, String> {
-        match n {
-            -1 => Ok(NTop::InstCount),
-            0 => Ok(NTop::All),
-            n if n > 0 && n <= u32::MAX as i64 => Ok(NTop::Top(n as u32)),
-            n => Err(format!("n_top must be -1, 0 or positive, not {n}")),
         }
     }
 }
@@ -273,5 +245,56 @@ impl Protocol {
             }
         }
         Ok(())
+    }
+}
+
+/// One column of per-estimate errors: an error type, and for VSD one of its taus.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Column {
+    /// Index into `Protocol::errors`.
+    pub error: usize,
+    /// For VSD, the tau of this column.
+    pub tau: Option<f64>,
+    /// bop_toolkit's error signature, e.g. `error=vsd_ntop=-1_delta=15.000_tau=0.050`.
+    pub signature: String,
+}
+
+/// The error columns a protocol computes, in a fixed order.
+pub fn columns(protocol: &Protocol) -> Vec<Column> {
+    let n_top = protocol.n_top.as_i64();
+    let mut cols = Vec::new();
+    for (i, spec) in protocol.errors.iter().enumerate() {
+        match &spec.kind {
+            ErrorKind::Vsd(p) => {
+                for &tau in &p.taus {
+                    cols.push(Column {
+                        error: i,
+                        tau: Some(tau),
+                        signature: format!(
+                            "error=vsd_ntop={n_top}_delta={:.3}_tau={tau:.3}",
+                            p.delta
+                        ),
+                    });
+                }
+            }
+            kind => cols.push(Column {
+                error: i,
+                tau: None,
+                signature: format!("error={}_ntop={n_top}", kind.name()),
+            }),
+        }
+    }
+    cols
+}
+
+/// The error compared with thresholds: VSD as is, MSSD, ADD, ADI and AD as a fraction of the
+/// object's diameter, MSPD in pixels at 640 px image width.
+pub fn normalised_error(dataset: &Dataset, kind: &ErrorKind, e: &EstimateErrors, raw: f64) -> f64 {
+    match kind {
+        ErrorKind::Vsd(_) => raw,
+        ErrorKind::Mspd => 640.0 / dataset.image_size.0 as f64 * raw,
+        ErrorKind::Mssd | ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad => {
+            raw / dataset.objects[&e.obj_id].info.diameter
+        }
     }
 }

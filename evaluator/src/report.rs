@@ -8,10 +8,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataset::Dataset;
 use crate::matching::EstimateErrors;
-use crate::pipeline::{Column, Selection, normalised_error};
-use crate::protocol::{ErrorKind, Protocol, ProtocolName};
+use crate::protocol::{Column, ErrorKind, Protocol, ProtocolName, normalised_error};
 use crate::results::Results;
-use crate::score::{Scored, ScoredImage, Scores, localization_scores, mean};
+use crate::score::{Scored, ScoredImage, Scores, localization_scores};
+use crate::selection::Selection;
+use crate::stats::{mean, recall};
 
 /// The version of the evaluator, stored with every score so that scores from different
 /// evaluator versions are never mixed silently.
@@ -44,6 +45,10 @@ pub struct Report {
     /// ECCV'18 Fig. 5 right: recall of ground-truth instances by their visible fraction.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub recall_vs_visib: Vec<VisibBin>,
+    /// BOP'19: per error type, recall against the threshold of correctness, averaged over the
+    /// error's other settings (the VSD taus): the curves whose means are AR_VSD, AR_MSSD, AR_MSPD.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub recall_vs_threshold: Vec<ThresholdCurve>,
 
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bop19_average_recall: Option<f64>,
@@ -98,6 +103,14 @@ pub struct ErrorParameters {
 pub struct ThetaCurve {
     pub tau: f64,
     /// (theta, recall) in increasing theta.
+    pub points: Vec<(f64, f64)>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ThresholdCurve {
+    /// The error type (`vsd`, `mssd`, `mspd`, ...).
+    pub error: String,
+    /// (threshold, recall) in the protocol's threshold order.
     pub points: Vec<(f64, f64)>,
 }
 
@@ -212,6 +225,7 @@ pub(crate) fn build(
         average_time_per_target: None,
         recall_vs_theta: Vec::new(),
         recall_vs_visib: Vec::new(),
+        recall_vs_threshold: Vec::new(),
         bop19_average_recall: None,
         bop19_average_recall_vsd: None,
         bop19_average_recall_mssd: None,
@@ -267,6 +281,7 @@ pub(crate) fn build(
                 report.bop19_average_recall = Some(mean(&[v, s, p]));
             }
             report.bop19_average_time_per_image = results.average_time_per_image();
+            report.recall_vs_threshold = threshold_curves(protocol, columns, &per_column);
             report.obj_average_recalls =
                 grouped_average_recall(protocol, columns, &per_column, |s| &s.obj_recalls);
             report.scene_average_recalls =
@@ -274,6 +289,39 @@ pub(crate) fn build(
         }
     }
     report
+}
+
+/// Per error type, the recall at each of its thresholds averaged over its columns (VSD taus).
+fn threshold_curves(
+    protocol: &Protocol,
+    columns: &[Column],
+    per_column: &[Vec<(f64, Scored)>],
+) -> Vec<ThresholdCurve> {
+    protocol
+        .errors
+        .iter()
+        .enumerate()
+        .map(|(e, spec)| {
+            let points = spec
+                .thresholds
+                .iter()
+                .enumerate()
+                .map(|(k, &th)| {
+                    let recalls: Vec<f64> = columns
+                        .iter()
+                        .zip(per_column)
+                        .filter(|(c, _)| c.error == e)
+                        .map(|(_, scored)| scored[k].1.scores.recall)
+                        .collect();
+                    (th, mean(&recalls))
+                })
+                .collect();
+            ThresholdCurve {
+                error: spec.kind.name().to_string(),
+                points,
+            }
+        })
+        .collect()
 }
 
 /// Per object (or scene): the mean over error types of the mean recall over that type's
@@ -321,7 +369,7 @@ fn visib_bins(images: &[ScoredImage], matched: &[Vec<bool>]) -> Vec<VisibBin> {
             visib_to: (i + 1) as f64 / 10.0,
             instances: n,
             matched: hit,
-            recall: crate::score::recall(hit, n),
+            recall: recall(hit, n),
         })
         .collect()
 }
