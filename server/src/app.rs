@@ -1,5 +1,5 @@
-//! The application state shared by the HTTP handlers and the workers, and the start-up
-//! sequence: database, datasets, demo data.
+//! The application state shared by the HTTP handlers, the services and the workers: the
+//! store, the configuration, the evaluation pool and the loaded datasets.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -10,7 +10,8 @@ use tokio::sync::{Mutex, Notify};
 
 use crate::config::Config;
 use crate::error::{AppError, AppResult};
-use crate::store::{DatasetRow, Store};
+use crate::store::Store;
+use crate::store::datasets::DatasetRow;
 
 pub struct App {
     pub store: Store,
@@ -25,8 +26,8 @@ pub struct App {
 pub type AppState = Arc<App>;
 
 impl App {
-    /// Connects and migrates the database, registers the datasets (generating the demo data
-    /// on a first start), and returns the state.
+    /// Connects and migrates the database, registers the datasets of the datasets directory,
+    /// and returns the state.
     pub async fn start(config: Config) -> anyhow::Result<AppState> {
         std::fs::create_dir_all(&config.data_dir)?;
         std::fs::create_dir_all(config.submissions_dir())?;
@@ -43,17 +44,12 @@ impl App {
             pool: pool.build()?,
             datasets: Mutex::new(HashMap::new()),
         });
-        if !app.config.no_demo && app.config.datasets.is_none() {
-            crate::demo_setup::ensure_demo_dataset(&app.config.datasets_dir()).await?;
-        }
         app.register_datasets().await?;
-        if !app.config.no_demo && app.config.datasets.is_none() {
-            crate::demo_setup::ensure_demo_submissions(&app).await?;
-        }
         Ok(app)
     }
 
-    /// Every subfolder of the datasets directory that loads as a BOP dataset is served.
+    /// Every subfolder of the datasets directory that loads as a BOP dataset is registered;
+    /// one an administrator retired stays retired.
     async fn register_datasets(&self) -> anyhow::Result<()> {
         let dir = self.config.datasets_dir();
         let Ok(entries) = std::fs::read_dir(&dir) else {
@@ -67,23 +63,29 @@ impl App {
             .collect();
         folders.sort();
         for folder in folders {
-            if let Err(e) = self.register_dataset(&folder).await {
-                tracing::error!(folder = %folder.display(), error = %e, "dataset skipped");
+            match self.register_dataset(&folder).await {
+                Ok(row) if row.retired => {
+                    tracing::info!(dataset = %row.name, "dataset retired: not served")
+                }
+                Ok(row) => {
+                    tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered")
+                }
+                Err(e) => {
+                    tracing::error!(folder = %folder.display(), error = %e, "dataset skipped")
+                }
             }
         }
         Ok(())
     }
 
-    /// Loads the BOP dataset in `folder` and serves it (again, if it had been retired).
+    /// Loads the BOP dataset in `folder` and registers it (a retired one stays retired).
     pub async fn register_dataset(&self, folder: &Path) -> AppResult<DatasetRow> {
         let path = folder.to_path_buf();
         let ds = tokio::task::spawn_blocking(move || Dataset::load(&path))
             .await
             .map_err(|e| AppError::Internal(e.to_string()))?
             .map_err(|e| AppError::BadRequest(format!("not a usable BOP dataset: {e}")))?;
-        let mut row = describe(&ds, folder);
-        row.id = self.store.upsert_dataset(&row).await?;
-        tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered");
+        let row = self.store.register_dataset(&describe(&ds, folder)).await?;
         self.datasets.lock().await.insert(row.id, Arc::new(ds));
         Ok(row)
     }
@@ -122,5 +124,6 @@ fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
         image_width: ds.image_size.0 as i64,
         image_height: ds.image_size.1 as i64,
         added_at: 0,
+        retired: false,
     }
 }

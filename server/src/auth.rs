@@ -1,15 +1,13 @@
 //! Who is asking: a browser with a session cookie, a script with a personal API token
-//! (`Authorization: Bearer TOKEN`), or nobody. Also the secrets themselves: argon2id password
-//! hashes, random session secrets and tokens (stored as SHA-256), and CSRF tokens.
+//! (`Authorization: Bearer TOKEN`), or nobody; and the session cookie and CSRF checks of the
+//! browser's forms.
 
-use argon2::{Argon2, PasswordHash, PasswordHasher, PasswordVerifier};
 use axum::extract::FromRequestParts;
 use axum::http::request::Parts;
 use axum::http::{HeaderMap, header};
 use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
-use rand::RngCore;
-use sha2::{Digest, Sha256};
 
+use crate::accounts::{same_secret, sha256_hex};
 use crate::app::AppState;
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::{Session, User};
@@ -17,45 +15,6 @@ use crate::store::accounts::{Session, User};
 pub const SESSION_COOKIE: &str = "pb_session";
 /// Sessions last two weeks.
 pub const SESSION_TTL_MS: i64 = 14 * 24 * 3600 * 1000;
-/// Personal tokens carry a prefix so that leaked ones are easy to recognise.
-pub const TOKEN_PREFIX: &str = "pbt_";
-
-pub fn hash_password(password: &str) -> AppResult<String> {
-    Argon2::default()
-        .hash_password(password.as_bytes())
-        .map(|h| h.to_string())
-        .map_err(|e| AppError::Internal(format!("password hashing failed: {e}")))
-}
-
-pub fn verify_password(password: &str, stored: &str) -> bool {
-    PasswordHash::new(stored)
-        .map(|h| {
-            Argon2::default()
-                .verify_password(password.as_bytes(), &h)
-                .is_ok()
-        })
-        .unwrap_or(false)
-}
-
-/// 256 random bits, hex-encoded.
-pub fn new_secret() -> String {
-    let mut bytes = [0u8; 32];
-    rand::rng().fill_bytes(&mut bytes);
-    hex::encode(bytes)
-}
-
-pub fn sha256_hex(secret: &str) -> String {
-    hex::encode(Sha256::digest(secret.as_bytes()))
-}
-
-/// Compares without an early exit, so the time taken does not tell how much of a guess was right.
-pub fn same_secret(a: &str, b: &str) -> bool {
-    a.len() == b.len()
-        && a.bytes()
-            .zip(b.bytes())
-            .fold(0u8, |acc, (x, y)| acc | (x ^ y))
-            == 0
-}
 
 /// Whether a form post comes from our own pages. Browsers send `Origin` with every form post;
 /// a post whose origin names another host is cross-site (login CSRF and the like). Requests

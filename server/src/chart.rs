@@ -2,7 +2,7 @@
 //! the template only places it, so pages need no JavaScript and no plotting crate (plotters'
 //! defaults need fontconfig).
 
-use evaluator::protocol::ProtocolName;
+use evaluator::Report;
 
 /// Plot area inside the SVG viewBox (0 0 360 240).
 const LEFT: f64 = 44.0;
@@ -43,115 +43,111 @@ fn sy(y: f64) -> f64 {
     BOTTOM - (BOTTOM - TOP) * y.clamp(0.0, 1.0)
 }
 
-/// Charts of one score from its stored curve points `(curve, series, x, y)`.
-pub fn charts(protocol: ProtocolName, points: &[(String, f64, f64, f64)]) -> Vec<Chart> {
+/// A curve to draw: its legend and its (x, y) points.
+type Line = (String, Vec<(f64, f64)>);
+
+/// The charts of one report: the paper's Fig. 5 for eccv18, recall against the threshold of
+/// correctness per error type for bop19.
+pub fn charts(report: &Report) -> Vec<Chart> {
     let mut out = Vec::new();
-    let curves: &[(&str, &str, &str)] = match protocol {
-        ProtocolName::Eccv18 => &[
-            (
-                "recall_vs_theta",
-                "Recall vs threshold of correctness",
+    if !report.recall_vs_theta.is_empty() {
+        let lines = report
+            .recall_vs_theta
+            .iter()
+            .map(|c| (format!("tau = {} mm", c.tau), c.points.clone()))
+            .collect();
+        out.push(chart(
+            "Recall vs threshold of correctness",
+            "theta",
+            1.0,
+            lines,
+        ));
+    }
+    let bins: Vec<(f64, f64)> = report
+        .recall_vs_visib
+        .iter()
+        .filter(|b| b.instances > 0)
+        // Visibility bins are plotted at their centres.
+        .map(|b| ((b.visib_from + b.visib_to) / 2.0, b.recall))
+        .collect();
+    if !bins.is_empty() {
+        out.push(chart(
+            "Recall vs visible fraction of the target",
+            "visible fraction",
+            1.0,
+            vec![("recall".to_string(), bins)],
+        ));
+    }
+    for curve in &report.recall_vs_threshold {
+        let (title, x_label) = match curve.error.as_str() {
+            "vsd" => (
+                "VSD recall vs threshold (mean over taus)".to_string(),
                 "theta",
             ),
-            (
-                "recall_vs_visib",
-                "Recall vs visible fraction of the target",
-                "visible fraction",
-            ),
-        ],
-        ProtocolName::Bop19 => &[
-            (
-                "recall_vs_th_vsd",
-                "VSD recall vs threshold (mean over taus)",
-                "theta",
-            ),
-            (
-                "recall_vs_th_mssd",
-                "MSSD recall vs threshold",
+            "mspd" => ("MSPD recall vs threshold".to_string(), "threshold (px)"),
+            other => (
+                format!("{} recall vs threshold", other.to_uppercase()),
                 "threshold (x diameter)",
             ),
-            (
-                "recall_vs_th_mspd",
-                "MSPD recall vs threshold",
-                "threshold (px)",
-            ),
-        ],
-    };
-    for &(curve, title, x_label) in curves {
-        let pts: Vec<&(String, f64, f64, f64)> = points.iter().filter(|p| p.0 == curve).collect();
-        if pts.is_empty() {
-            continue;
-        }
-        let x_max = match curve {
-            "recall_vs_visib" | "recall_vs_theta" => 1.0,
-            _ => pts.iter().map(|p| p.2).fold(0.0, f64::max).max(1e-9),
         };
-        let mut series_keys: Vec<f64> = pts.iter().map(|p| p.1).collect();
-        series_keys.sort_by(|a, b| a.total_cmp(b));
-        series_keys.dedup();
-        let series = series_keys
+        let x_max = curve
+            .points
             .iter()
-            .enumerate()
-            .map(|(i, &key)| {
-                let mut xy: Vec<(f64, f64)> = pts
-                    .iter()
-                    .filter(|p| p.1 == key)
-                    // Visibility bins are plotted at their centres.
-                    .map(|p| {
-                        (
-                            if curve == "recall_vs_visib" {
-                                p.2 + 0.05
-                            } else {
-                                p.2
-                            },
-                            p.3,
-                        )
-                    })
-                    .collect();
-                xy.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let dots: Vec<(f64, f64)> =
-                    xy.iter().map(|&(x, y)| (sx(x, x_max), sy(y))).collect();
-                Series {
-                    label: if curve == "recall_vs_theta" {
-                        format!("tau = {key} mm")
-                    } else {
-                        "recall".to_string()
-                    },
-                    points: dots
-                        .iter()
-                        .map(|(x, y)| format!("{x:.1},{y:.1}"))
-                        .collect::<Vec<_>>()
-                        .join(" "),
-                    dots,
-                    class: format!("series-{i}"),
-                }
-            })
-            .collect();
-        out.push(Chart {
-            title: title.to_string(),
-            x_label: x_label.to_string(),
-            series,
-            x_ticks: (0..=5)
-                .map(|i| {
-                    let v = x_max * i as f64 / 5.0;
-                    Tick {
-                        pos: sx(v, x_max),
-                        label: trim(v),
-                    }
-                })
-                .collect(),
-            y_ticks: (0..=5)
-                .map(|i| {
-                    let v = i as f64 / 5.0;
-                    Tick {
-                        pos: sy(v),
-                        label: trim(v),
-                    }
-                })
-                .collect(),
-        });
+            .map(|p| p.0)
+            .fold(0.0, f64::max)
+            .max(1e-9);
+        out.push(chart(
+            &title,
+            x_label,
+            x_max,
+            vec![("recall".to_string(), curve.points.clone())],
+        ));
     }
     out
+}
+
+fn chart(title: &str, x_label: &str, x_max: f64, lines: Vec<Line>) -> Chart {
+    let series = lines
+        .into_iter()
+        .enumerate()
+        .map(|(i, (label, mut xy))| {
+            xy.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let dots: Vec<(f64, f64)> = xy.iter().map(|&(x, y)| (sx(x, x_max), sy(y))).collect();
+            Series {
+                label,
+                points: dots
+                    .iter()
+                    .map(|(x, y)| format!("{x:.1},{y:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                dots,
+                class: format!("series-{i}"),
+            }
+        })
+        .collect();
+    Chart {
+        title: title.to_string(),
+        x_label: x_label.to_string(),
+        series,
+        x_ticks: (0..=5)
+            .map(|i| {
+                let v = x_max * i as f64 / 5.0;
+                Tick {
+                    pos: sx(v, x_max),
+                    label: trim(v),
+                }
+            })
+            .collect(),
+        y_ticks: (0..=5)
+            .map(|i| {
+                let v = i as f64 / 5.0;
+                Tick {
+                    pos: sy(v),
+                    label: trim(v),
+                }
+            })
+            .collect(),
+    }
 }
 
 fn trim(v: f64) -> String {
@@ -165,14 +161,15 @@ mod tests {
 
     #[test]
     fn curves_map_into_the_plot_area() {
-        let pts = vec![
-            ("recall_vs_theta".to_string(), 20.0, 0.0, 0.0),
-            ("recall_vs_theta".to_string(), 20.0, 1.0, 1.0),
-            ("recall_vs_theta".to_string(), 80.0, 0.5, 0.5),
-        ];
-        let charts = charts(ProtocolName::Eccv18, &pts);
-        assert_eq!(charts.len(), 1);
-        let c = &charts[0];
+        let c = chart(
+            "t",
+            "theta",
+            1.0,
+            vec![
+                ("tau = 20 mm".into(), vec![(1.0, 1.0), (0.0, 0.0)]),
+                ("tau = 80 mm".into(), vec![(0.5, 0.5)]),
+            ],
+        );
         assert_eq!(c.series.len(), 2);
         assert_eq!(
             c.series[0].points,

@@ -72,6 +72,10 @@ impl Config {
         self.max_upload_mb.saturating_mul(1 << 20)
     }
 
+    pub fn limit_window_ms(&self) -> i64 {
+        self.limit_window_secs.saturating_mul(1000) as i64
+    }
+
     pub fn lease_ms(&self) -> i64 {
         (self.lease_secs.max(1) * 1000) as i64
     }

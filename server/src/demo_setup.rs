@@ -1,11 +1,19 @@
 //! The first-start experience: with nothing configured, the service generates a small
 //! synthetic dataset and a few demo submissions, so that a newcomer sees a live leaderboard.
+//! The demo files go through the same submissions service as any upload.
 
 use std::path::Path;
 
+use evaluator::protocol::ProtocolName;
+
+use crate::accounts::{new_secret, register};
 use crate::app::App;
 use crate::demo::{DEMO_DATASET, SynthOptions, write_dataset, write_demo_results};
-use crate::routes::submissions::{Upload, UploadedFile, accept};
+use crate::domain::{
+    Description, Hardware, MethodName, Modality, Password, TrainingData, UserName, Visibility,
+};
+use crate::store::methods::MethodMeta;
+use crate::submissions::{Upload, UploadedFile, submit};
 
 /// The account that owns the demo submissions.
 pub const DEMO_USER: &str = "demo";
@@ -31,8 +39,8 @@ pub async fn ensure_demo_dataset(datasets_dir: &Path) -> anyhow::Result<()> {
 }
 
 /// Submits the demo result files once, when the service has no submission yet.
-pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Result<()> {
-    if !app.store.recent_submissions(1).await?.is_empty() {
+pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
+    if app.store.has_submissions().await? {
         return Ok(());
     }
     let Some(row) = app.store.dataset_by_name(DEMO_DATASET).await? else {
@@ -42,8 +50,8 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
     let owner = match app.store.user_by_name(DEMO_USER).await? {
         Some(u) => u,
         None => {
-            let hash = crate::auth::hash_password(&crate::auth::new_secret())?;
-            app.store.create_user(DEMO_USER, &hash, false).await?;
+            let name = UserName::parse(DEMO_USER)?;
+            register(&app.store, &name, &Password::parse(&new_secret())?, false).await?;
             app.store
                 .user_by_name(DEMO_USER)
                 .await?
@@ -57,37 +65,26 @@ pub async fn ensure_demo_submissions(app: &std::sync::Arc<App>) -> anyhow::Resul
         .await??;
     for demo in demos {
         let bytes = std::fs::read(&demo.path)?;
-        let tmp = tempfile::Builder::new()
-            .prefix("demo-")
-            .tempfile_in(app.config.submissions_dir())?;
-        std::fs::write(tmp.path(), &bytes)?;
+        let name = demo
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let upload = Upload {
-            method: demo.method.clone(),
+            method: MethodName::parse(&demo.method)?,
             dataset: row.name.clone(),
-            protocol: None,
-            description: demo.description.clone(),
-            paper_url: String::new(),
-            code_url: String::new(),
-            training_data: "synthetic".to_string(),
-            modality: "rgb-d".to_string(),
-            hardware: "demo data: times are made up".to_string(),
-            public: true,
-            csrf: String::new(),
-            file: Some(UploadedFile {
-                name: demo
-                    .path
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                tmp: tmp.into_temp_path(),
-                sha256: {
-                    use sha2::Digest;
-                    hex::encode(sha2::Sha256::digest(&bytes))
-                },
-                size: bytes.len() as u64,
-            }),
+            protocols: vec![ProtocolName::Bop19, ProtocolName::Eccv18],
+            meta: MethodMeta {
+                description: Description::parse(&demo.description)?,
+                training_data: Some(TrainingData::Synthetic),
+                modality: Some(Modality::RgbD),
+                ..MethodMeta::default()
+            },
+            hardware: Hardware::parse("demo data: times are made up")?,
+            visibility: Visibility::Public,
+            file: UploadedFile::from_bytes(&app.config.submissions_dir(), &name, &bytes)?,
         };
-        accept(app, upload, &owner).await?;
+        submit(app, &owner, upload).await?;
         tracing::info!(method = %demo.method, "demo submission queued");
     }
     Ok(())

@@ -6,6 +6,10 @@ use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
+use crate::clock::now_ms;
+use crate::domain::FieldError;
+use crate::store::StoreError;
+
 pub type AppResult<T> = Result<T, AppError>;
 
 /// A problem of an uploaded file, with its line (0 = the file as a whole).
@@ -40,10 +44,8 @@ pub enum AppError {
     },
     #[error("the upload is larger than the limit of {limit} bytes")]
     TooLarge { limit: u64 },
-    #[error("configuration: {0}")]
-    Config(String),
-    #[error("database: {0}")]
-    Database(#[from] sqlx::Error),
+    #[error("{0}")]
+    Store(StoreError),
     #[error("{0}")]
     Io(#[from] std::io::Error),
     #[error("{0}")]
@@ -61,6 +63,22 @@ pub struct ErrorBody {
     pub retry_at: Option<i64>,
 }
 
+impl From<StoreError> for AppError {
+    fn from(e: StoreError) -> Self {
+        match e {
+            StoreError::NotFound => AppError::NotFound,
+            StoreError::Unique { .. } => AppError::Conflict("it exists already".into()),
+            e => AppError::Store(e),
+        }
+    }
+}
+
+impl From<FieldError> for AppError {
+    fn from(e: FieldError) -> Self {
+        AppError::BadRequest(e.to_string())
+    }
+}
+
 impl AppError {
     pub fn status(&self) -> StatusCode {
         match self {
@@ -72,10 +90,9 @@ impl AppError {
             AppError::BadRequest(_) => StatusCode::BAD_REQUEST,
             AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
-            AppError::Config(_)
-            | AppError::Database(_)
-            | AppError::Io(_)
-            | AppError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_) => {
+                StatusCode::INTERNAL_SERVER_ERROR
+            }
         }
     }
 
@@ -111,7 +128,7 @@ impl IntoResponse for AppError {
         let body = self.body();
         let mut response = (status, Json(body.clone())).into_response();
         if let Some(at) = body.retry_at {
-            let secs = ((at - crate::store::now_ms()).max(0) + 999) / 1000;
+            let secs = ((at - now_ms()).max(0) + 999) / 1000;
             if let Ok(v) = axum::http::HeaderValue::from_str(&secs.to_string()) {
                 response
                     .headers_mut()

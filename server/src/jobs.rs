@@ -14,7 +14,7 @@ use evaluator::{Progress, Report, evaluate, results};
 use tokio::task::JoinHandle;
 
 use crate::app::AppState;
-use crate::store::SubmissionRow;
+use crate::store::submissions::{Fault, SubmissionRow};
 
 /// How often an idle worker looks at the queue without being woken.
 const POLL: Duration = Duration::from_secs(2);
@@ -104,10 +104,10 @@ async fn run_job(app: &AppState, worker: &str, job: SubmissionRow) {
     let outcome = evaluate_job(app, worker, &job).await;
     let stored = match outcome {
         Ok(reports) => app.store.finish(job.id, worker, &reports).await,
-        Err(JobError::User(msg)) => app.store.fail(job.id, worker, &msg, "user").await,
+        Err(JobError::User(msg)) => app.store.fail(job.id, worker, &msg, Fault::User).await,
         Err(JobError::Service(msg)) => {
             tracing::error!(submission = job.id, error = %msg, "evaluation failed");
-            app.store.fail(job.id, worker, &msg, "service").await
+            app.store.fail(job.id, worker, &msg, Fault::Service).await
         }
     };
     match stored {

@@ -2,16 +2,22 @@
 //! `poseboard` command line. The evaluation itself lives in the `evaluator` crate; data flows
 //! one way: upload → validate → queue → evaluate → store → page.
 
+pub mod accounts;
 pub mod app;
 pub mod auth;
 pub mod chart;
 pub mod cli;
+pub mod clock;
 pub mod config;
 pub mod demo;
 pub mod demo_setup;
+pub mod domain;
 pub mod error;
 pub mod jobs;
+pub mod moderation;
 pub mod openapi;
+pub mod preflight;
 pub mod routes;
 pub mod store;
+pub mod submissions;
 pub mod views;

@@ -3,13 +3,20 @@
 
 use std::collections::BTreeMap;
 
+use evaluator::Report;
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::report::{Parameters, parameters};
 use serde::{Deserialize, Serialize};
 
-use crate::app::AppState;
+use crate::app::App;
+use crate::auth::Viewer;
+use crate::chart::Chart;
+use crate::domain::{Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
-use crate::store::{BoardEntry, DatasetRow, SubmissionRow};
+use crate::preflight::Preflight;
+use crate::store::datasets::DatasetRow;
+use crate::store::scores::BoardEntry;
+use crate::store::submissions::{Status, SubmissionRow};
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Cell {
@@ -27,8 +34,8 @@ pub struct BoardRow {
     pub rank: usize,
     pub method_id: i64,
     pub method: String,
-    pub training_data: String,
-    pub modality: String,
+    pub training_data: Option<TrainingData>,
+    pub modality: Option<Modality>,
     /// The hardware of the method's latest submission shown.
     pub hardware: String,
     /// Per dataset name, the method's score there.
@@ -55,7 +62,7 @@ pub struct Leaderboard {
     pub rows: Vec<BoardRow>,
 }
 
-/// The query of a leaderboard page or its JSON twin.
+/// The query of a leaderboard page or its JSON twin, as given (the page's links keep it).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct BoardFilter {
     /// One dataset (its per-object table) instead of all.
@@ -96,12 +103,52 @@ impl BoardFilter {
             format!("?{}", q.join("&"))
         }
     }
+}
+
+/// How a leaderboard's rows are ordered.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sort {
+    /// By the average over the datasets shown (or the one dataset's score), best first.
+    Average,
+    /// By the reported time, fastest first.
+    Time,
+    /// By method name.
+    Method,
+    /// By the score on one dataset, best first.
+    Dataset(String),
+}
+
+/// A leaderboard query with every value checked: unknown sorts and filter values are errors.
+struct Query {
+    sort: Sort,
+    training: Option<TrainingData>,
+    modality: Option<Modality>,
+}
+
+impl Query {
+    fn parse(filter: &BoardFilter, datasets: &[DatasetRow]) -> AppResult<Query> {
+        let field = |v: &Option<String>| v.clone().unwrap_or_default();
+        let sort = match field(&filter.sort).as_str() {
+            "" | "average" => Sort::Average,
+            "time" => Sort::Time,
+            "method" => Sort::Method,
+            name if datasets.iter().any(|d| d.name == name) => Sort::Dataset(name.to_string()),
+            other => {
+                return Err(AppError::BadRequest(format!(
+                    "cannot sort by `{other}`: use average, time, method or a dataset name"
+                )));
+            }
+        };
+        Ok(Query {
+            sort,
+            training: optional(&field(&filter.training))?,
+            modality: optional(&field(&filter.modality))?,
+        })
+    }
 
     fn matches(&self, e: &BoardEntry) -> bool {
-        let ok = |want: &Option<String>, have: &str| {
-            want.as_deref().is_none_or(|w| w.is_empty() || w == have)
-        };
-        ok(&self.training, &e.training_data) && ok(&self.modality, &e.modality)
+        self.training.is_none_or(|t| e.training_data == Some(t))
+            && self.modality.is_none_or(|m| e.modality == Some(m))
     }
 }
 
@@ -125,7 +172,7 @@ pub fn score_name(p: ProtocolName) -> &'static str {
 
 /// Builds a leaderboard.
 pub async fn leaderboard(
-    app: &AppState,
+    app: &App,
     protocol: ProtocolName,
     filter: &BoardFilter,
 ) -> AppResult<Leaderboard> {
@@ -141,6 +188,7 @@ pub async fn leaderboard(
         ),
         _ => None,
     };
+    let query = Query::parse(filter, &datasets)?;
     let entries = app
         .store
         .leaderboard(protocol, selected.as_ref().map(|d| d.id))
@@ -151,13 +199,13 @@ pub async fn leaderboard(
     };
     let mut by_method: BTreeMap<i64, BoardRow> = BTreeMap::new();
     let mut object_ids = std::collections::BTreeSet::new();
-    for e in entries.iter().filter(|e| filter.matches(e)) {
+    for e in entries.iter().filter(|e| query.matches(e)) {
         let row = by_method.entry(e.method_id).or_insert_with(|| BoardRow {
             rank: 0,
             method_id: e.method_id,
             method: e.method.clone(),
-            training_data: e.training_data.clone(),
-            modality: e.modality.clone(),
+            training_data: e.training_data,
+            modality: e.modality,
             hardware: e.hardware.clone(),
             scores: BTreeMap::new(),
             average: None,
@@ -184,15 +232,14 @@ pub async fn leaderboard(
             row.time = Some(times.iter().sum::<f64>() / times.len() as f64);
         }
     }
-    let sort = filter.sort.clone().unwrap_or_else(|| "average".to_string());
     let key = |r: &BoardRow| -> f64 {
-        match sort.as_str() {
-            "average" => r.average.unwrap_or(-1.0),
-            "time" => -r.time.unwrap_or(f64::INFINITY),
-            name => r.scores.get(name).map_or(-1.0, |c| c.score),
+        match &query.sort {
+            Sort::Average | Sort::Method => r.average.unwrap_or(-1.0),
+            Sort::Time => -r.time.unwrap_or(f64::INFINITY),
+            Sort::Dataset(name) => r.scores.get(name).map_or(-1.0, |c| c.score),
         }
     };
-    if sort == "method" {
+    if query.sort == Sort::Method {
         rows.sort_by_key(|r| r.method.to_lowercase());
     } else {
         rows.sort_by(|a, b| {
@@ -238,43 +285,31 @@ pub struct SubmissionView {
     #[serde(flatten)]
     pub submission: SubmissionRow,
     pub queue_position: Option<i64>,
-    pub preflight: serde_json::Value,
+    pub preflight: Preflight,
     /// Per protocol, the full report (the same keys as `poseboard eval --out`).
-    pub scores: BTreeMap<String, serde_json::Value>,
+    pub scores: BTreeMap<ProtocolName, Report>,
     #[serde(skip)]
-    pub charts: Vec<crate::chart::Chart>,
+    pub charts: Vec<Chart>,
 }
 
 /// A submission as `viewer` may see it: a private one answers as missing to everyone but its
 /// owner and the admins, exactly like one that does not exist.
-pub async fn submission(
-    app: &AppState,
-    id: i64,
-    viewer: &crate::auth::Viewer,
-) -> AppResult<SubmissionView> {
+pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if (!submission.public || submission.hidden) && !viewer.can_see(submission.owner_id) {
+    if !submission.is_public() && !viewer.can_see(submission.owner_id) {
         return Err(AppError::NotFound);
     }
     let queue_position = match submission.status {
-        crate::store::Status::Queued => Some(app.store.queue_position(id).await?),
+        Status::Queued => Some(app.store.queue_position(id).await?),
         _ => None,
     };
-    let mut scores = BTreeMap::new();
-    let mut charts = Vec::new();
-    for (score, json) in app.store.scores_of_submission(id).await? {
-        let report: serde_json::Value =
-            serde_json::from_str(&json).map_err(|e| AppError::Internal(e.to_string()))?;
-        scores.insert(score.protocol.as_str().to_string(), report);
-        let points = app.store.curve_points(score.id).await?;
-        charts.extend(crate::chart::charts(score.protocol, &points));
-    }
+    let reports = app.store.reports_of_submission(id).await?;
+    let charts = reports.iter().flat_map(crate::chart::charts).collect();
     Ok(SubmissionView {
-        preflight: serde_json::from_str(&submission.preflight_json)
-            .unwrap_or(serde_json::Value::Null),
+        preflight: submission.preflight.clone(),
         submission,
         queue_position,
-        scores,
+        scores: reports.into_iter().map(|r| (r.protocol, r)).collect(),
         charts,
     })
 }

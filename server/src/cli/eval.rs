@@ -12,6 +12,8 @@ use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::preflight::Preflight;
+
 #[derive(Args, Debug)]
 pub struct EvalArgs {
     /// A BOP dataset folder (models/ or models_eval/, test/, test_targets_bop19.json).
@@ -212,29 +214,19 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
     );
     if let Some(dir) = &args.dataset {
         let dataset = load_dataset(dir)?;
-        let targets: std::collections::HashSet<(u32, u32, u32)> = dataset
-            .targets
-            .iter()
-            .map(|t| (t.scene_id, t.im_id, t.obj_id))
-            .collect();
-        let covered: std::collections::HashSet<(u32, u32, u32)> = results
-            .estimates
-            .iter()
-            .map(|e| (e.scene_id, e.im_id, e.obj_id))
-            .collect();
-        let ignored = results
-            .estimates
-            .iter()
-            .filter(|e| !targets.contains(&(e.scene_id, e.im_id, e.obj_id)))
-            .count();
-        let missing = targets.difference(&covered).count();
+        // The upload pre-flight check, so the command line and the service say the same.
+        let p = Preflight::of(
+            &dataset,
+            &results,
+            &[ProtocolName::Bop19, ProtocolName::Eccv18],
+        );
         println!(
             "{}: {} targets, {} without an estimate; {} estimates are not for a target and would be ignored",
-            dataset.name,
-            targets.len(),
-            missing,
-            ignored
+            dataset.name, p.targets, p.targets_without_estimate, p.estimates_not_for_targets
         );
+        for w in &p.warnings {
+            println!("warning: {w}");
+        }
     }
     Ok(())
 }

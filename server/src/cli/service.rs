@@ -4,9 +4,11 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
+use crate::accounts;
 use crate::app::App;
 use crate::config::{Config, ServeConfig};
 use crate::demo::{SynthOptions, write_dataset, write_demo_results};
+use crate::domain::{Password, TokenLabel, UserName};
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -60,7 +62,15 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
     init_logging();
     runtime()?.block_on(async move {
         let bind = args.config.bind;
-        let app = App::start(args.config.common).await?;
+        let config = args.config.common;
+        let demo = !config.no_demo && config.datasets.is_none();
+        if demo {
+            crate::demo_setup::ensure_demo_dataset(&config.datasets_dir()).await?;
+        }
+        let app = App::start(config).await?;
+        if demo {
+            crate::demo_setup::ensure_demo_submissions(&app).await?;
+        }
         crate::jobs::spawn_workers(&app);
         let listener = tokio::net::TcpListener::bind(bind).await?;
         // Scripts and tests read this line to learn the port when binding to port 0.
@@ -81,10 +91,8 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
     init_logging();
     runtime()?.block_on(async move {
-        let mut config = args.config;
         // Workers never generate demo data; the server that owns the datasets does.
-        config.no_demo = true;
-        let app = App::start(config).await?;
+        let app = App::start(args.config).await?;
         let handles = crate::jobs::spawn_workers(&app);
         tokio::select! {
             _ = tokio::signal::ctrl_c() => {}
@@ -179,12 +187,9 @@ pub fn admin(args: AdminArgs) -> anyhow::Result<()> {
                 admin,
             } => {
                 let password = std::fs::read_to_string(&password_file)?;
-                let password = password.trim_end_matches(['\n', '\r']);
-                if password.chars().count() < 10 {
-                    anyhow::bail!("the password must have at least 10 characters");
-                }
-                let hash = crate::auth::hash_password(password)?;
-                store.create_user(&name, &hash, admin).await?;
+                let password = Password::parse(password.trim_end_matches(['\n', '\r']))?;
+                let name = UserName::parse(&name)?;
+                accounts::register(&store, &name, &password, admin).await?;
                 println!(
                     "created {}{name}",
                     if admin { "administrator " } else { "user " }
@@ -195,10 +200,8 @@ pub fn admin(args: AdminArgs) -> anyhow::Result<()> {
                     .user_by_name(&name)
                     .await?
                     .ok_or_else(|| anyhow::anyhow!("no user `{name}`"))?;
-                let token = format!("{}{}", crate::auth::TOKEN_PREFIX, crate::auth::new_secret());
-                store
-                    .create_token(user.id, &label, &crate::auth::sha256_hex(&token))
-                    .await?;
+                let token =
+                    accounts::create_token(&store, user.id, &TokenLabel::parse(&label)?).await?;
                 println!("{token}");
             }
         }

@@ -6,17 +6,17 @@ use axum::Router;
 use std::net::SocketAddr;
 
 use axum::extract::{ConnectInfo, Form, Path, Query, State};
-use axum::http::HeaderMap;
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
 use axum_extra::extract::cookie::{Cookie, CookieJar};
 use serde::Deserialize;
 
+use crate::accounts::{self, new_secret, sha256_hex};
 use crate::app::AppState;
-use crate::auth::{
-    self, SESSION_COOKIE, SESSION_TTL_MS, TOKEN_PREFIX, Viewer, hash_password, new_secret,
-    sha256_hex,
-};
+use crate::auth::{self, SESSION_COOKIE, SESSION_TTL_MS, Viewer};
+use crate::clock::now_ms;
+use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
 use crate::routes::pages::filters;
 use crate::store::accounts::TokenRow;
@@ -82,7 +82,7 @@ const LOGIN_WINDOW_MS: i64 = 15 * 60 * 1000;
 
 /// Refuses a sign-in while its account or its address has failed too often recently.
 async fn check_login_rate(app: &AppState, keys: &[(String, usize)]) -> AppResult<()> {
-    let since = crate::store::now_ms() - LOGIN_WINDOW_MS;
+    let since = now_ms() - LOGIN_WINDOW_MS;
     for (key, limit) in keys {
         let failures = app.store.login_failures(key, since).await?;
         if failures.len() >= *limit {
@@ -116,13 +116,9 @@ async fn login(
     let found = app.store.user_for_login(c.name.trim()).await?;
     // Verification runs on the blocking pool: argon2 is deliberately slow.
     let verified = match found {
-        Some((user, hash)) => {
-            let pw = c.password.clone();
-            tokio::task::spawn_blocking(move || auth::verify_password(&pw, &hash))
-                .await
-                .map_err(|e| AppError::Internal(e.to_string()))?
-                .then_some(user)
-        }
+        Some((user, hash)) => accounts::verify_password(&c.password, &hash)
+            .await?
+            .then_some(user),
         None => None,
     };
     let Some(user) = verified else {
@@ -134,7 +130,7 @@ async fn login(
             error: Some("unknown name or wrong password".into()),
             ..LoginPage::default()
         };
-        return Ok((axum::http::StatusCode::UNAUTHORIZED, page).into_response());
+        return Ok((StatusCode::UNAUTHORIZED, page).into_response());
     };
     app.store.clear_login_failures(&account_key).await?;
     start_session(&app, user.id, &headers, jar, &next).await
@@ -167,43 +163,23 @@ async fn register(
         ));
     }
     let next = safe_next(c.next.as_deref());
-    let name = c.name.trim().to_string();
-    let problem = if name.is_empty() || name.chars().count() > 40 {
-        Some("the name must have 1 to 40 characters")
-    } else if !name
-        .chars()
-        .all(|ch| ch.is_alphanumeric() || "-_.".contains(ch))
-    {
-        Some("the name may contain letters, digits, `-`, `_` and `.`")
-    } else if c.password.chars().count() < 10 || c.password.len() > 1024 {
-        Some("the password must have 10 to 1024 characters")
-    } else {
-        None
-    };
-    if let Some(problem) = problem {
+    let refuse = |status, problem: String| {
         let page = LoginPage {
             register: true,
-            name,
-            next,
-            error: Some(problem.into()),
+            name: c.name.trim().to_string(),
+            next: next.clone(),
+            error: Some(problem),
         };
-        return Ok((axum::http::StatusCode::UNPROCESSABLE_ENTITY, page).into_response());
-    }
-    let pw = c.password.clone();
-    let hash = tokio::task::spawn_blocking(move || hash_password(&pw))
-        .await
-        .map_err(|e| AppError::Internal(e.to_string()))??;
-    let id = match app.store.create_user(&name, &hash, false).await {
+        Ok((status, page).into_response())
+    };
+    let parsed = UserName::parse(&c.name).and_then(|n| Ok((n, Password::parse(&c.password)?)));
+    let (name, password) = match parsed {
+        Ok(p) => p,
+        Err(e) => return refuse(StatusCode::UNPROCESSABLE_ENTITY, e.problem_sentence()),
+    };
+    let id = match accounts::register(&app.store, &name, &password, false).await {
         Ok(id) => id,
-        Err(AppError::Conflict(msg)) => {
-            let page = LoginPage {
-                register: true,
-                name,
-                next,
-                error: Some(msg),
-            };
-            return Ok((axum::http::StatusCode::CONFLICT, page).into_response());
-        }
+        Err(AppError::Conflict(msg)) => return refuse(StatusCode::CONFLICT, msg),
         Err(e) => return Err(e),
     };
     start_session(&app, id, &headers, jar, &next).await
@@ -271,16 +247,8 @@ async fn create_token(
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();
-    let name = f.name.trim();
-    if name.is_empty() || name.chars().count() > 100 {
-        return Err(AppError::BadRequest(
-            "a token needs a name of 1 to 100 characters".into(),
-        ));
-    }
-    let token = format!("{TOKEN_PREFIX}{}", new_secret());
-    app.store
-        .create_token(user.id, name, &sha256_hex(&token))
-        .await?;
+    let label = TokenLabel::parse(&f.name)?;
+    let token = accounts::create_token(&app.store, user.id, &label).await?;
     account_page(&app, &viewer, Some(token)).await
 }
 

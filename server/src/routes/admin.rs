@@ -12,7 +12,9 @@ use serde_json::json;
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
+use crate::moderation;
 use crate::store::accounts::User;
+use crate::store::audit::AdminAction;
 
 pub fn router() -> Router<AppState> {
     Router::new()
@@ -42,35 +44,15 @@ fn admin(viewer: &Viewer) -> AppResult<&User> {
         .ok_or(AppError::NotFound)
 }
 
-/// Applies `action` (hide, unhide, rerun, delete) to a submission and records it.
-async fn submission_action(app: &AppState, actor: &User, id: i64, action: &str) -> AppResult<()> {
-    let done = match action {
-        "hide" => app.store.set_hidden(id, true).await?,
-        "unhide" => app.store.set_hidden(id, false).await?,
-        "rerun" => {
-            let queued = app.store.rerun(id).await?;
-            app.wake.notify_waiters();
-            queued
-        }
-        "delete" => match app.store.delete_submission(id).await? {
-            Some(unused_file) => {
-                if let Some(sha) = unused_file {
-                    let _ = tokio::fs::remove_file(app.stored_file(&sha)).await;
-                }
-                true
-            }
-            None => false,
-        },
-        _ => return Err(AppError::NotFound),
-    };
-    if !done {
-        return Err(AppError::BadRequest(format!(
-            "cannot {action} submission {id} (missing, or not finished for a re-run)"
-        )));
+/// The submission actions of the URL; anything else is a route that does not exist.
+fn submission_action_named(action: &str) -> AppResult<AdminAction> {
+    match action.parse() {
+        Ok(
+            a
+            @ (AdminAction::Hide | AdminAction::Unhide | AdminAction::Rerun | AdminAction::Delete),
+        ) => Ok(a),
+        _ => Err(AppError::NotFound),
     }
-    app.store
-        .audit(actor.id, action, &format!("submission {id}"))
-        .await
 }
 
 async fn api_submission_action(
@@ -79,7 +61,7 @@ async fn api_submission_action(
     Path((id, action)): Path<(i64, String)>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
-    submission_action(&app, actor, id, &action).await?;
+    moderation::submission_action(&app, actor, id, submission_action_named(&action)?).await?;
     Ok(Json(
         json!({ "ok": true, "action": action, "submission": id }),
     ))
@@ -99,7 +81,7 @@ async fn page_submission_action(
 ) -> AppResult<Response> {
     let actor = admin(&viewer)?;
     viewer.check_csrf(&f.csrf)?;
-    submission_action(&app, actor, id, &action).await?;
+    moderation::submission_action(&app, actor, id, submission_action_named(&action)?).await?;
     let to = if action == "delete" {
         "/".to_string()
     } else {
@@ -116,39 +98,13 @@ struct NewDataset {
     csrf: String,
 }
 
-/// Serves the dataset in a folder of the datasets directory, named by a plain folder name.
-async fn add_dataset(
-    app: &AppState,
-    actor: &User,
-    name: &str,
-) -> AppResult<crate::store::DatasetRow> {
-    // Only a plain folder name: no path separators, no `..`.
-    if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
-        return Err(AppError::BadRequest(
-            "`name` must be a folder name inside the datasets directory".into(),
-        ));
-    }
-    let row = app
-        .register_dataset(&app.config.datasets_dir().join(name))
-        .await?;
-    app.store.audit(actor.id, "add dataset", &row.name).await?;
-    Ok(row)
-}
-
-async fn retire_dataset(app: &AppState, actor: &User, name: &str) -> AppResult<()> {
-    if !app.store.retire_dataset(name).await? {
-        return Err(AppError::NotFound);
-    }
-    app.store.audit(actor.id, "retire dataset", name).await
-}
-
 async fn api_add_dataset(
     State(app): State<AppState>,
     viewer: Viewer,
     Json(d): Json<NewDataset>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
-    let row = add_dataset(&app, actor, &d.name).await?;
+    let row = moderation::add_dataset(&app, actor, &d.name).await?;
     Ok(Json(json!({ "dataset": row })))
 }
 
@@ -158,7 +114,7 @@ async fn api_retire_dataset(
     Path(name): Path<String>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
-    retire_dataset(&app, actor, &name).await?;
+    moderation::retire_dataset(&app, actor, &name).await?;
     Ok(Json(json!({ "ok": true, "retired": name })))
 }
 
@@ -169,7 +125,7 @@ async fn page_add_dataset(
 ) -> AppResult<Response> {
     let actor = admin(&viewer)?;
     viewer.check_csrf(&d.csrf)?;
-    add_dataset(&app, actor, d.name.trim()).await?;
+    moderation::add_dataset(&app, actor, d.name.trim()).await?;
     Ok(Redirect::to("/datasets").into_response())
 }
 
@@ -181,7 +137,7 @@ async fn page_retire_dataset(
 ) -> AppResult<Response> {
     let actor = admin(&viewer)?;
     viewer.check_csrf(&f.csrf)?;
-    retire_dataset(&app, actor, &name).await?;
+    moderation::retire_dataset(&app, actor, &name).await?;
     Ok(Redirect::to("/datasets").into_response())
 }
 

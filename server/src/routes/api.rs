@@ -14,7 +14,8 @@ use serde_json::json;
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
-use crate::routes::submissions::{Accepted, accept, read_upload};
+use crate::routes::submissions::read_upload;
+use crate::submissions::{Accepted, submit};
 use crate::views;
 
 pub fn router(max_upload: u64) -> Router<AppState> {
@@ -38,14 +39,16 @@ async fn datasets(State(app): State<AppState>) -> AppResult<Json<serde_json::Val
 }
 
 async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
-    Ok(Json(json!({ "methods": app.store.methods().await? })))
+    Ok(Json(
+        json!({ "methods": app.store.public_methods().await? }),
+    ))
 }
 
 async fn method(
     State(app): State<AppState>,
     Path(id): Path<i64>,
 ) -> AppResult<Json<serde_json::Value>> {
-    let submissions = app.store.submissions_of_method(id).await?;
+    let submissions = app.store.public_submissions_of_method(id).await?;
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
     if submissions.is_empty() {
         // A method with only private submissions is not public.
@@ -58,7 +61,7 @@ async fn method(
 
 async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
     Ok(Json(
-        json!({ "submissions": app.store.recent_submissions(100).await? }),
+        json!({ "submissions": app.store.recent_public_submissions(100).await? }),
     ))
 }
 
@@ -71,12 +74,12 @@ async fn create_submission(
     let owner = viewer.require_user()?.clone();
     // Credentials are checked before the body is looked at, even a malformed one.
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
-    let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let (fields, file) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let Accepted {
         submission,
         duplicate,
         preflight,
-    } = accept(&app, upload, &owner).await?;
+    } = submit(&app, &owner, fields.parse(file)?).await?;
     let status = if duplicate {
         StatusCode::OK
     } else {

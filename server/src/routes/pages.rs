@@ -11,14 +11,17 @@ use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::get;
+use evaluator::Report;
 use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
 use crate::auth::Viewer;
-use crate::chart::Chart;
 use crate::error::{AppError, AppResult, ErrorBody};
-use crate::routes::submissions::{accept, read_upload};
-use crate::store::{DatasetRow, MethodRow, SubmissionRow};
+use crate::routes::submissions::read_upload;
+use crate::store::datasets::DatasetRow;
+use crate::store::methods::MethodRow;
+use crate::store::submissions::{Fault, SubmissionRow};
+use crate::submissions;
 use crate::views::{self, BoardFilter, Leaderboard, SubmissionView};
 
 pub fn router(max_upload: u64) -> Router<AppState> {
@@ -157,7 +160,7 @@ struct MethodPage {
 }
 
 async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<MethodPage> {
-    let submissions = app.store.submissions_of_method(id).await?;
+    let submissions = app.store.public_submissions_of_method(id).await?;
     if submissions.is_empty() {
         return Err(AppError::NotFound);
     }
@@ -171,28 +174,10 @@ async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<M
 #[template(path = "submission.html")]
 struct SubmissionPage {
     view: SubmissionView,
-    charts: Vec<Chart>,
-    warnings: Vec<String>,
-    bop19: Option<serde_json::Value>,
-    eccv18: Option<serde_json::Value>,
+    bop19: Option<Report>,
+    eccv18: Option<Report>,
     /// For an administrator's browser: the CSRF token of the moderation buttons.
     admin_csrf: Option<String>,
-}
-
-impl SubmissionPage {
-    fn num(v: &serde_json::Value, key: &str) -> Option<f64> {
-        v.get(key).and_then(|x| x.as_f64())
-    }
-    fn objects(v: &serde_json::Value, key: &str) -> Vec<(String, f64)> {
-        v.get(key)
-            .and_then(|o| o.as_object())
-            .map(|o| {
-                o.iter()
-                    .filter_map(|(k, x)| Some((k.clone(), x.as_f64()?)))
-                    .collect()
-            })
-            .unwrap_or_default()
-    }
 }
 
 async fn submission(
@@ -201,21 +186,9 @@ async fn submission(
     Path(id): Path<i64>,
 ) -> AppResult<SubmissionPage> {
     let view = views::submission(&app, id, &viewer).await?;
-    let warnings = view
-        .preflight
-        .get("warnings")
-        .and_then(|w| w.as_array())
-        .map(|w| {
-            w.iter()
-                .filter_map(|s| s.as_str().map(str::to_string))
-                .collect()
-        })
-        .unwrap_or_default();
     Ok(SubmissionPage {
-        charts: view.charts.clone(),
-        bop19: view.scores.get("bop19").cloned(),
-        eccv18: view.scores.get("eccv18").cloned(),
-        warnings,
+        bop19: view.scores.get(&ProtocolName::Bop19).cloned(),
+        eccv18: view.scores.get(&ProtocolName::Eccv18).cloned(),
         view,
         admin_csrf: viewer
             .session
@@ -264,20 +237,24 @@ async fn submit(
     // token, which travels in the body, is checked once read.
     viewer.require_user()?;
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
-    let upload = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
-    let owner = viewer.check_csrf(&upload.csrf)?.clone();
+    let (fields, file) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let owner = viewer.check_csrf(&fields.csrf)?.clone();
     let typed = SubmitPage {
-        method: upload.method.clone(),
-        dataset: upload.dataset.clone(),
-        description: upload.description.clone(),
-        paper_url: upload.paper_url.clone(),
-        code_url: upload.code_url.clone(),
-        hardware: upload.hardware.clone(),
+        method: fields.method.clone(),
+        dataset: fields.dataset.clone(),
+        description: fields.description.clone(),
+        paper_url: fields.paper_url.clone(),
+        code_url: fields.code_url.clone(),
+        hardware: fields.hardware.clone(),
         max_upload_mb: app.config.max_upload_mb,
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()
     };
-    match accept(&app, upload, &owner).await {
+    let accepted = match fields.parse(file) {
+        Ok(upload) => submissions::submit(&app, &owner, upload).await,
+        Err(e) => Err(e),
+    };
+    match accepted {
         Ok(accepted) => {
             Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response())
         }

@@ -5,8 +5,8 @@
 use serde::Serialize;
 use sqlx::Row;
 
-use super::{Store, now_ms};
-use crate::error::{AppError, AppResult};
+use super::{Store, StoreError, StoreResult};
+use crate::clock::now_ms;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct User {
@@ -37,7 +37,7 @@ impl Store {
         name: &str,
         password_hash: &str,
         is_admin: bool,
-    ) -> AppResult<i64> {
+    ) -> StoreResult<i64> {
         let row = sqlx::query(
             "INSERT INTO users (name, password_hash, is_admin, created_at) VALUES ($1, $2, $3, $4) \
              ON CONFLICT (name) DO NOTHING RETURNING id",
@@ -50,23 +50,24 @@ impl Store {
         .await?;
         match row {
             Some(row) => Ok(row.try_get("id")?),
-            None => Err(AppError::Conflict(format!("the name `{name}` is taken"))),
+            None => Err(StoreError::Unique {
+                constraint: Some("users_name".into()),
+            }),
         }
     }
 
     /// The user and their password hash, for signing in.
-    pub async fn user_for_login(&self, name: &str) -> AppResult<Option<(User, String)>> {
+    pub async fn user_for_login(&self, name: &str) -> StoreResult<Option<(User, String)>> {
         let row =
             sqlx::query("SELECT id, name, is_admin, password_hash FROM users WHERE name = $1")
                 .bind(name)
                 .fetch_optional(&self.pool)
                 .await?;
-        Ok(row
-            .map(|r| -> Result<_, sqlx::Error> { Ok((user(&r)?, r.try_get("password_hash")?)) })
-            .transpose()?)
+        row.map(|r| Ok((user(&r)?, r.try_get("password_hash")?)))
+            .transpose()
     }
 
-    pub async fn user_by_name(&self, name: &str) -> AppResult<Option<User>> {
+    pub async fn user_by_name(&self, name: &str) -> StoreResult<Option<User>> {
         Ok(self.user_for_login(name).await?.map(|(u, _)| u))
     }
 
@@ -76,7 +77,7 @@ impl Store {
         secret_hash: &str,
         csrf_token: &str,
         ttl_ms: i64,
-    ) -> AppResult<()> {
+    ) -> StoreResult<()> {
         let now = now_ms();
         sqlx::query(
             "INSERT INTO sessions (secret_hash, user_id, csrf_token, created_at, expires_at) \
@@ -92,7 +93,7 @@ impl Store {
         Ok(())
     }
 
-    pub async fn session(&self, secret_hash: &str) -> AppResult<Option<Session>> {
+    pub async fn session(&self, secret_hash: &str) -> StoreResult<Option<Session>> {
         let row = sqlx::query(
             "SELECT u.id, u.name, u.is_admin, s.csrf_token FROM sessions s \
              JOIN users u ON u.id = s.user_id WHERE s.secret_hash = $1 AND s.expires_at > $2",
@@ -101,17 +102,16 @@ impl Store {
         .bind(now_ms())
         .fetch_optional(&self.pool)
         .await?;
-        Ok(row
-            .map(|r| -> Result<_, sqlx::Error> {
-                Ok(Session {
-                    user: user(&r)?,
-                    csrf_token: r.try_get("csrf_token")?,
-                })
+        row.map(|r| {
+            Ok(Session {
+                user: user(&r)?,
+                csrf_token: r.try_get("csrf_token")?,
             })
-            .transpose()?)
+        })
+        .transpose()
     }
 
-    pub async fn delete_session(&self, secret_hash: &str) -> AppResult<()> {
+    pub async fn delete_session(&self, secret_hash: &str) -> StoreResult<()> {
         sqlx::query("DELETE FROM sessions WHERE secret_hash = $1")
             .bind(secret_hash)
             .execute(&self.pool)
@@ -119,7 +119,12 @@ impl Store {
         Ok(())
     }
 
-    pub async fn create_token(&self, user_id: i64, name: &str, token_hash: &str) -> AppResult<i64> {
+    pub async fn create_token(
+        &self,
+        user_id: i64,
+        name: &str,
+        token_hash: &str,
+    ) -> StoreResult<i64> {
         let row = sqlx::query(
             "INSERT INTO api_tokens (user_id, name, token_hash, created_at) VALUES ($1, $2, $3, $4) RETURNING id",
         )
@@ -133,7 +138,7 @@ impl Store {
     }
 
     /// The owner of a live token, recording its use.
-    pub async fn user_for_token(&self, token_hash: &str) -> AppResult<Option<User>> {
+    pub async fn user_for_token(&self, token_hash: &str) -> StoreResult<Option<User>> {
         let row = sqlx::query(
             "UPDATE api_tokens SET last_used_at = $1 WHERE token_hash = $2 AND revoked_at IS NULL \
              RETURNING user_id",
@@ -151,7 +156,7 @@ impl Store {
         Ok(Some(user(&row)?))
     }
 
-    pub async fn tokens(&self, user_id: i64) -> AppResult<Vec<TokenRow>> {
+    pub async fn tokens(&self, user_id: i64) -> StoreResult<Vec<TokenRow>> {
         let rows = sqlx::query(
             "SELECT id, name, created_at, last_used_at, revoked_at FROM api_tokens \
              WHERE user_id = $1 ORDER BY id DESC",
@@ -173,7 +178,7 @@ impl Store {
     }
 
     /// Revokes one of the user's own tokens; false when there is no such live token.
-    pub async fn revoke_token(&self, user_id: i64, token_id: i64) -> AppResult<bool> {
+    pub async fn revoke_token(&self, user_id: i64, token_id: i64) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE api_tokens SET revoked_at = $1 WHERE id = $2 AND user_id = $3 AND revoked_at IS NULL",
         )
@@ -188,7 +193,7 @@ impl Store {
 
 impl Store {
     /// Failed sign-ins for `key` since `since`, oldest first.
-    pub async fn login_failures(&self, key: &str, since: i64) -> AppResult<Vec<i64>> {
+    pub async fn login_failures(&self, key: &str, since: i64) -> StoreResult<Vec<i64>> {
         let rows =
             sqlx::query("SELECT at FROM login_failures WHERE key = $1 AND at >= $2 ORDER BY at")
                 .bind(key)
@@ -198,7 +203,7 @@ impl Store {
         rows.iter().map(|r| Ok(r.try_get("at")?)).collect()
     }
 
-    pub async fn record_login_failure(&self, keys: &[String]) -> AppResult<()> {
+    pub async fn record_login_failure(&self, keys: &[String]) -> StoreResult<()> {
         let now = now_ms();
         for key in keys {
             sqlx::query("INSERT INTO login_failures (key, at) VALUES ($1, $2)")
@@ -215,7 +220,7 @@ impl Store {
         Ok(())
     }
 
-    pub async fn clear_login_failures(&self, key: &str) -> AppResult<()> {
+    pub async fn clear_login_failures(&self, key: &str) -> StoreResult<()> {
         sqlx::query("DELETE FROM login_failures WHERE key = $1")
             .bind(key)
             .execute(&self.pool)
@@ -224,7 +229,7 @@ impl Store {
     }
 }
 
-fn user(r: &sqlx::any::AnyRow) -> Result<User, sqlx::Error> {
+fn user(r: &sqlx::any::AnyRow) -> StoreResult<User> {
     Ok(User {
         id: r.try_get("id")?,
         name: r.try_get("name")?,

@@ -1,0 +1,143 @@
+//! Storage of datasets, methods, submissions (which are also the evaluation jobs), scores,
+//! accounts and the audit log, in SQLite by default or PostgreSQL. One store over `sqlx::Any`,
+//! with the SQL kept common (`$N` placeholders, `RETURNING`) and a backend switch only where
+//! the dialects differ (the job claim, write transactions, connection setup, migrations).
+//! Times are epoch milliseconds; booleans 0/1.
+//!
+//! The store speaks in types: rows come back as structs and enums, and a stored value that no
+//! longer parses (an unknown status, say) is a [`StoreError::Corrupt`], never a silent default.
+//! It knows nothing of HTTP; the service maps [`StoreError`] to statuses in one place.
+
+use std::path::Path;
+use std::str::FromStr;
+
+use sqlx::any::AnyPoolOptions;
+use sqlx::migrate::Migrator;
+use sqlx::{Any, AnyPool, Transaction};
+
+pub mod accounts;
+pub mod audit;
+pub mod datasets;
+pub mod methods;
+pub mod queue;
+pub mod scores;
+pub mod submissions;
+
+static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/sqlite");
+static POSTGRES_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/postgres");
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    Sqlite,
+    Postgres,
+}
+
+#[derive(Clone)]
+pub struct Store {
+    pool: AnyPool,
+    backend: Backend,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("not found")]
+    NotFound,
+    /// A row that would break a unique constraint; PostgreSQL names the constraint, SQLite not.
+    #[error("already exists ({})", constraint.as_deref().unwrap_or("unique constraint"))]
+    Unique { constraint: Option<String> },
+    /// A stored value that does not parse: the database was changed behind the service's back
+    /// or by a newer version of it.
+    #[error("stored value {value:?} in `{column}` is not valid")]
+    Corrupt { column: &'static str, value: String },
+    #[error("unsupported database URL `{0}`: use sqlite://... or postgres://...")]
+    Url(String),
+    #[error("migrations: {0}")]
+    Migrate(#[from] sqlx::migrate::MigrateError),
+    #[error("database: {0}")]
+    Database(sqlx::Error),
+}
+
+impl From<sqlx::Error> for StoreError {
+    fn from(e: sqlx::Error) -> Self {
+        match e.as_database_error() {
+            Some(d) if d.is_unique_violation() => StoreError::Unique {
+                constraint: d.constraint().map(str::to_string),
+            },
+            _ => StoreError::Database(e),
+        }
+    }
+}
+
+pub type StoreResult<T> = Result<T, StoreError>;
+
+/// Parses a stored text column into its type; a value that does not parse is corruption.
+pub(crate) fn parse_column<T: FromStr>(column: &'static str, value: String) -> StoreResult<T> {
+    value
+        .parse()
+        .map_err(|_| StoreError::Corrupt { column, value })
+}
+
+/// The default database: a SQLite file in the data directory.
+pub fn sqlite_url(data_dir: &Path) -> String {
+    format!(
+        "sqlite://{}?mode=rwc",
+        data_dir.join("poseboard.db").display()
+    )
+}
+
+impl Store {
+    /// Connects to `url` (`sqlite://...` or `postgres://...`); a SQLite file is created when
+    /// missing and put in WAL mode so that pages read while a worker writes.
+    pub async fn connect(url: &str) -> StoreResult<Store> {
+        sqlx::any::install_default_drivers();
+        let backend = if url.starts_with("postgres") {
+            Backend::Postgres
+        } else if url.starts_with("sqlite") {
+            Backend::Sqlite
+        } else {
+            return Err(StoreError::Url(url.to_string()));
+        };
+        let mut options =
+            AnyPoolOptions::new().max_connections(if backend == Backend::Sqlite { 4 } else { 10 });
+        if backend == Backend::Sqlite {
+            options = options.after_connect(|conn, _| {
+                Box::pin(async move {
+                    for pragma in [
+                        "PRAGMA journal_mode = WAL",
+                        "PRAGMA busy_timeout = 10000",
+                        "PRAGMA foreign_keys = ON",
+                        "PRAGMA synchronous = NORMAL",
+                    ] {
+                        sqlx::query(pragma).execute(&mut *conn).await?;
+                    }
+                    Ok(())
+                })
+            });
+        }
+        let pool = options.connect(url).await?;
+        Ok(Store { pool, backend })
+    }
+
+    pub fn backend(&self) -> Backend {
+        self.backend
+    }
+
+    pub async fn migrate(&self) -> StoreResult<()> {
+        let migrator = match self.backend {
+            Backend::Sqlite => &SQLITE_MIGRATIONS,
+            Backend::Postgres => &POSTGRES_MIGRATIONS,
+        };
+        migrator.run(&self.pool).await?;
+        Ok(())
+    }
+
+    /// A transaction that will write: on SQLite it takes the write lock at once (`BEGIN
+    /// IMMEDIATE`), so that reading then writing cannot fail half-way with `SQLITE_BUSY` when
+    /// another writer got in between; PostgreSQL locks rows as the statements ask.
+    async fn write_transaction(&self) -> StoreResult<Transaction<'static, Any>> {
+        Ok(match self.backend {
+            Backend::Sqlite => self.pool.begin_with("BEGIN IMMEDIATE").await?,
+            Backend::Postgres => self.pool.begin().await?,
+        })
+    }
+}

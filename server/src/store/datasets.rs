@@ -1,0 +1,119 @@
+//! The datasets an instance serves. A dataset is registered when its folder is found at start
+//! or added by an administrator; a retired one keeps its row (its submissions point at it) and
+//! stays retired across restarts until an administrator adds it again.
+
+use serde::Serialize;
+use sqlx::Row;
+use sqlx::any::AnyRow;
+
+use super::{Store, StoreResult};
+use crate::clock::now_ms;
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DatasetRow {
+    pub id: i64,
+    pub name: String,
+    #[serde(skip)]
+    pub path: String,
+    pub objects_count: i64,
+    pub scenes_count: i64,
+    pub images_count: i64,
+    pub targets_count: i64,
+    pub instances_count: i64,
+    pub image_width: i64,
+    pub image_height: i64,
+    pub added_at: i64,
+    pub retired: bool,
+}
+
+fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
+    Ok(DatasetRow {
+        id: row.try_get("id")?,
+        name: row.try_get("name")?,
+        path: row.try_get("path")?,
+        objects_count: row.try_get("objects_count")?,
+        scenes_count: row.try_get("scenes_count")?,
+        images_count: row.try_get("images_count")?,
+        targets_count: row.try_get("targets_count")?,
+        instances_count: row.try_get("instances_count")?,
+        image_width: row.try_get("image_width")?,
+        image_height: row.try_get("image_height")?,
+        added_at: row.try_get("added_at")?,
+        retired: row.try_get::<i64, _>("retired")? != 0,
+    })
+}
+
+impl Store {
+    /// Registers a dataset, or refreshes the description of the one of that name; returns the
+    /// row as stored, whose `retired` flag is left as it was (see [`Store::revive_dataset`]).
+    pub async fn register_dataset(&self, d: &DatasetRow) -> StoreResult<DatasetRow> {
+        let row = sqlx::query(
+            "INSERT INTO datasets (name, path, objects_count, scenes_count, images_count, \
+             targets_count, instances_count, image_width, image_height, added_at) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) \
+             ON CONFLICT (name) DO UPDATE SET path = excluded.path, \
+             objects_count = excluded.objects_count, scenes_count = excluded.scenes_count, \
+             images_count = excluded.images_count, targets_count = excluded.targets_count, \
+             instances_count = excluded.instances_count, image_width = excluded.image_width, \
+             image_height = excluded.image_height \
+             RETURNING *",
+        )
+        .bind(&d.name)
+        .bind(&d.path)
+        .bind(d.objects_count)
+        .bind(d.scenes_count)
+        .bind(d.images_count)
+        .bind(d.targets_count)
+        .bind(d.instances_count)
+        .bind(d.image_width)
+        .bind(d.image_height)
+        .bind(now_ms())
+        .fetch_one(&self.pool)
+        .await?;
+        dataset(&row)
+    }
+
+    /// Serves a retired dataset again; false when there is no retired dataset of that name.
+    pub async fn revive_dataset(&self, name: &str) -> StoreResult<bool> {
+        let done = sqlx::query("UPDATE datasets SET retired = 0 WHERE name = $1 AND retired = 1")
+            .bind(name)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Stops serving a dataset; false when no served dataset has that name.
+    pub async fn retire_dataset(&self, name: &str) -> StoreResult<bool> {
+        let done = sqlx::query("UPDATE datasets SET retired = 1 WHERE name = $1 AND retired = 0")
+            .bind(name)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// The datasets served, by name.
+    pub async fn datasets(&self) -> StoreResult<Vec<DatasetRow>> {
+        let rows = sqlx::query("SELECT * FROM datasets WHERE retired = 0 ORDER BY name")
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(dataset).collect()
+    }
+
+    /// A served dataset by name.
+    pub async fn dataset_by_name(&self, name: &str) -> StoreResult<Option<DatasetRow>> {
+        let row = sqlx::query("SELECT * FROM datasets WHERE name = $1 AND retired = 0")
+            .bind(name)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.as_ref().map(dataset).transpose()
+    }
+
+    /// A dataset by id, served or retired (old submissions still name it).
+    pub async fn dataset(&self, id: i64) -> StoreResult<Option<DatasetRow>> {
+        let row = sqlx::query("SELECT * FROM datasets WHERE id = $1")
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.as_ref().map(dataset).transpose()
+    }
+}

@@ -1,0 +1,180 @@
+//! The job queue is the submissions table: a worker claims a row with a lease, renews it with
+//! a heartbeat that also records progress, and stores the scores in the same transaction that
+//! marks the row done, only while the job is still its own. A job whose lease expired (its
+//! worker died) is claimed again by any worker; after `max_attempts` it is failed instead.
+
+use evaluator::Report;
+use evaluator::protocol::ProtocolName;
+use sqlx::Row;
+
+use super::submissions::{Fault, SubmissionRow};
+use super::{Backend, Store, StoreError, StoreResult};
+use crate::clock::now_ms;
+
+impl Store {
+    /// Takes the oldest queued submission, or one whose worker's lease expired, for `worker`
+    /// for `lease_ms`. Submissions that failed `max_attempts` times for the service's reasons
+    /// are marked failed instead of being retried forever.
+    pub async fn claim(
+        &self,
+        worker: &str,
+        lease_ms: i64,
+        max_attempts: i64,
+    ) -> StoreResult<Option<SubmissionRow>> {
+        let now = now_ms();
+        sqlx::query(
+            "UPDATE submissions SET status = 'failed', fault = 'service', finished_at = $1, \
+             error = 'the evaluation was interrupted too many times' \
+             WHERE status = 'running' AND lease_until < $1 AND attempts >= $2",
+        )
+        .bind(now)
+        .bind(max_attempts)
+        .execute(&self.pool)
+        .await?;
+        let lock = match self.backend {
+            Backend::Postgres => " FOR UPDATE SKIP LOCKED",
+            // SQLite runs one writer at a time, so the subquery and the update are atomic.
+            Backend::Sqlite => "",
+        };
+        let sql = format!(
+            "UPDATE submissions SET status = 'running', worker = $1, lease_until = $2, \
+             attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = 0 \
+             WHERE id = (SELECT id FROM submissions WHERE status = 'queued' \
+             OR (status = 'running' AND lease_until < $3) ORDER BY id LIMIT 1{lock}) \
+             RETURNING id"
+        );
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(worker)
+            .bind(now + lease_ms)
+            .bind(now)
+            .fetch_optional(&self.pool)
+            .await?;
+        match row {
+            Some(row) => self.submission(row.try_get("id")?).await,
+            None => Ok(None),
+        }
+    }
+
+    /// Extends the lease and records progress; false when the job is no longer this worker's.
+    pub async fn heartbeat(
+        &self,
+        id: i64,
+        worker: &str,
+        lease_ms: i64,
+        progress: f64,
+    ) -> StoreResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET lease_until = $1, progress = $2 \
+             WHERE id = $3 AND worker = $4 AND status = 'running'",
+        )
+        .bind(now_ms() + lease_ms)
+        .bind(progress)
+        .bind(id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Stores the scores and marks the submission done, in one transaction that only commits
+    /// if the job is still this worker's: a job taken over after a lost lease never ends up
+    /// with two score sets.
+    pub async fn finish(&self, id: i64, worker: &str, reports: &[Report]) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let now = now_ms();
+        let updated = sqlx::query(
+            "UPDATE submissions SET status = 'done', progress = 1, finished_at = $1, \
+             lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2 \
+             WHERE id = $3 AND worker = $4 AND status = 'running'",
+        )
+        .bind(now)
+        .bind(evaluator::report::EVALUATOR_VERSION)
+        .bind(id)
+        .bind(worker)
+        .execute(&mut *tx)
+        .await?;
+        if updated.rows_affected() != 1 {
+            tx.rollback().await?;
+            return Ok(false);
+        }
+        sqlx::query("DELETE FROM scores WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        for report in reports {
+            let loc = report.localization.as_ref();
+            let (time_avg, recall) = match report.protocol {
+                ProtocolName::Eccv18 => (report.average_time_per_target, loc.map(|l| l.recall)),
+                ProtocolName::Bop19 => (report.bop19_average_time_per_image, None),
+            };
+            let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
+                column: "report_json",
+                value: e.to_string(),
+            })?;
+            let row = sqlx::query(
+                "INSERT INTO scores (submission_id, protocol, score, recall, ar_vsd, ar_mssd, \
+                 ar_mspd, time_avg, targets_count, tp_count, estimates_evaluated, estimates_ignored, \
+                 report_json, created_at) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14) RETURNING id",
+            )
+            // The optional columns are NULL for one protocol and numbers for the other; a
+            // cached statement would keep the parameter types of its first use.
+            .persistent(false)
+            .bind(id)
+            .bind(report.protocol.as_str())
+            .bind(report.headline())
+            .bind(recall)
+            .bind(report.bop19_average_recall_vsd)
+            .bind(report.bop19_average_recall_mssd)
+            .bind(report.bop19_average_recall_mspd)
+            .bind(time_avg)
+            .bind(loc.map(|l| l.targets_count as i64))
+            .bind(loc.map(|l| l.tp_count as i64))
+            .bind(report.estimates_evaluated as i64)
+            .bind(report.estimates_ignored as i64)
+            .bind(json)
+            .bind(now)
+            .fetch_one(&mut *tx)
+            .await?;
+            let score_id: i64 = row.try_get("id")?;
+            let objects = match (report.protocol, loc) {
+                (ProtocolName::Eccv18, Some(l)) => &l.obj_recalls,
+                _ => &report.obj_average_recalls,
+            };
+            for (&obj, &value) in objects {
+                sqlx::query(
+                    "INSERT INTO object_scores (score_id, obj_id, value) VALUES ($1, $2, $3)",
+                )
+                .bind(score_id)
+                .bind(i64::from(obj))
+                .bind(value)
+                .execute(&mut *tx)
+                .await?;
+            }
+        }
+        tx.commit().await?;
+        Ok(true)
+    }
+
+    /// Marks the job failed with a reason; false when it is no longer this worker's.
+    pub async fn fail(
+        &self,
+        id: i64,
+        worker: &str,
+        error: &str,
+        fault: Fault,
+    ) -> StoreResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET status = 'failed', error = $1, fault = $2, finished_at = $3, \
+             lease_until = NULL WHERE id = $4 AND worker = $5 AND status = 'running'",
+        )
+        .bind(error)
+        .bind(fault.as_str())
+        .bind(now_ms())
+        .bind(id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+}

@@ -1,0 +1,502 @@
+//! Submissions: an uploaded result file for a method and a dataset, with its lifecycle. A new
+//! submission is created in one transaction with its method (get or create), the duplicate
+//! check and the fair-use count, so that parallel uploads of one user can neither exceed the
+//! limit nor trip over each other's new method.
+
+use std::fmt;
+use std::str::FromStr;
+
+use evaluator::protocol::ProtocolName;
+use serde::Serialize;
+use sqlx::Row;
+use sqlx::any::AnyRow;
+
+use super::methods::MethodMeta;
+use super::{Backend, Store, StoreError, StoreResult, parse_column};
+use crate::clock::now_ms;
+use crate::domain::{Hardware, MethodName, Visibility};
+use crate::preflight::Preflight;
+
+/// Lifecycle of a submission (which is also its evaluation job).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Queued,
+    Running,
+    Done,
+    Failed,
+}
+
+impl Status {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Queued => "queued",
+            Status::Running => "running",
+            Status::Done => "done",
+            Status::Failed => "failed",
+        }
+    }
+}
+
+impl FromStr for Status {
+    type Err = ();
+    fn from_str(s: &str) -> Result<Self, ()> {
+        match s {
+            "queued" => Ok(Status::Queued),
+            "running" => Ok(Status::Running),
+            "done" => Ok(Status::Done),
+            "failed" => Ok(Status::Failed),
+            _ => Err(()),
+        }
+    }
+}
+
+impl fmt::Display for Status {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Whom a failed evaluation is due to. Failures through the service's fault never count
+/// against the user's fair-use limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Fault {
+    /// The file: shown to the user as the reason.
+    User,
+    /// The service (a crash, a lost worker, a missing dataset).
+    Service,
+}
+
+impl Fault {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Fault::User => "user",
+            Fault::Service => "service",
+        }
+    }
+}
+
+impl FromStr for Fault {
+    type Err = ();
+    fn from_str(s: &str) -> Result<Self, ()> {
+        match s {
+            "user" => Ok(Fault::User),
+            "service" => Ok(Fault::Service),
+            _ => Err(()),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SubmissionRow {
+    pub id: i64,
+    pub method_id: i64,
+    pub method: String,
+    pub dataset_id: i64,
+    pub dataset: String,
+    pub protocols: Vec<ProtocolName>,
+    pub visibility: Visibility,
+    pub file_name: String,
+    pub file_sha256: String,
+    pub file_size: i64,
+    pub estimates_count: i64,
+    pub status: Status,
+    pub progress: f64,
+    pub error: Option<String>,
+    pub fault: Option<Fault>,
+    pub attempts: i64,
+    pub created_at: i64,
+    pub started_at: Option<i64>,
+    pub finished_at: Option<i64>,
+    pub evaluator_version: Option<String>,
+    /// The hardware the reported times come from.
+    pub hardware: String,
+    #[serde(skip)]
+    pub owner_id: Option<i64>,
+    /// Hidden by an administrator: shown to its owner and the administrators only.
+    pub hidden: bool,
+    #[serde(skip)]
+    pub preflight: Preflight,
+}
+
+impl SubmissionRow {
+    /// Whether anyone may see it (and the leaderboards count it).
+    pub fn is_public(&self) -> bool {
+        self.visibility == Visibility::Public && !self.hidden
+    }
+}
+
+/// A submission to create, with the method it is for.
+pub struct NewSubmission<'a> {
+    pub owner_id: i64,
+    pub method: &'a MethodName,
+    pub meta: &'a MethodMeta,
+    pub dataset_id: i64,
+    pub protocols: &'a [ProtocolName],
+    pub visibility: Visibility,
+    pub file_name: &'a str,
+    pub file_sha256: &'a str,
+    pub file_size: i64,
+    pub estimates_count: i64,
+    pub hardware: &'a Hardware,
+    pub preflight: &'a Preflight,
+}
+
+/// A fair-use limit: at most `limit` submissions per user and dataset since `since` (epoch ms).
+#[derive(Clone, Copy, Debug)]
+pub struct FairUse {
+    pub limit: usize,
+    pub since: i64,
+}
+
+/// What [`Store::create_submission`] did.
+#[derive(Debug, PartialEq)]
+pub enum Created {
+    /// A new submission, queued.
+    New(i64),
+    /// The same file was already submitted for the method and dataset: that submission.
+    Duplicate(i64),
+    /// Over the fair-use limit: nothing was written; the counted submissions' times, oldest first.
+    Limited { times: Vec<i64> },
+}
+
+/// What [`Store::delete_submission`] removed.
+#[derive(Debug, PartialEq)]
+pub struct Deleted {
+    pub file_sha256: String,
+    /// No other submission has the same content, so the stored file can go.
+    pub file_unused: bool,
+}
+
+fn protocols_to_text(p: &[ProtocolName]) -> String {
+    p.iter().map(|p| p.as_str()).collect::<Vec<_>>().join(",")
+}
+
+fn protocols_from_text(s: String) -> StoreResult<Vec<ProtocolName>> {
+    s.split(',')
+        .map(|p| {
+            ProtocolName::from_str(p).map_err(|_| StoreError::Corrupt {
+                column: "protocols",
+                value: s.clone(),
+            })
+        })
+        .collect()
+}
+
+pub(crate) const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, \
+    d.name AS dataset, s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, \
+    s.estimates_count, s.status, s.progress, s.error, s.fault, s.attempts, s.created_at, \
+    s.started_at, s.finished_at, s.evaluator_version, s.hardware, s.owner_id, s.hidden, \
+    s.preflight_json \
+    FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
+
+pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
+    let preflight: String = row.try_get("preflight_json")?;
+    let preflight = serde_json::from_str(&preflight).map_err(|_| StoreError::Corrupt {
+        column: "preflight_json",
+        value: preflight,
+    })?;
+    Ok(SubmissionRow {
+        id: row.try_get("id")?,
+        method_id: row.try_get("method_id")?,
+        method: row.try_get("method")?,
+        dataset_id: row.try_get("dataset_id")?,
+        dataset: row.try_get("dataset")?,
+        protocols: protocols_from_text(row.try_get("protocols")?)?,
+        visibility: if row.try_get::<i64, _>("public")? != 0 {
+            Visibility::Public
+        } else {
+            Visibility::Private
+        },
+        file_name: row.try_get("file_name")?,
+        file_sha256: row.try_get("file_sha256")?,
+        file_size: row.try_get("file_size")?,
+        estimates_count: row.try_get("estimates_count")?,
+        status: parse_column("status", row.try_get("status")?)?,
+        progress: row.try_get("progress")?,
+        error: row.try_get("error")?,
+        fault: row
+            .try_get::<Option<String>, _>("fault")?
+            .map(|f| parse_column("fault", f))
+            .transpose()?,
+        attempts: row.try_get("attempts")?,
+        created_at: row.try_get("created_at")?,
+        started_at: row.try_get("started_at")?,
+        finished_at: row.try_get("finished_at")?,
+        evaluator_version: row.try_get("evaluator_version")?,
+        hardware: row.try_get("hardware")?,
+        owner_id: row.try_get("owner_id")?,
+        hidden: row.try_get::<i64, _>("hidden")? != 0,
+        preflight,
+    })
+}
+
+impl Store {
+    /// Creates a submission and, if new, its method, in one transaction: the duplicate check
+    /// first (a re-upload of the same file answers with the existing submission, whatever the
+    /// limit), then the fair-use count, then the inserts. Parallel calls for one user are
+    /// serialised (SQLite: the write lock; PostgreSQL: the user's row), so the count is exact.
+    pub async fn create_submission(
+        &self,
+        new: &NewSubmission<'_>,
+        fair_use: Option<FairUse>,
+    ) -> StoreResult<Created> {
+        let mut tx = self.write_transaction().await?;
+        if self.backend == Backend::Postgres {
+            sqlx::query("SELECT id FROM users WHERE id = $1 FOR UPDATE")
+                .bind(new.owner_id)
+                .fetch_optional(&mut *tx)
+                .await?;
+        }
+        let method_id: Option<i64> =
+            sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
+                .bind(new.owner_id)
+                .bind(new.method.as_str())
+                .fetch_optional(&mut *tx)
+                .await?
+                .map(|r| r.try_get("id"))
+                .transpose()?;
+        if let Some(method_id) = method_id {
+            let same = sqlx::query(
+                "SELECT id FROM submissions WHERE method_id = $1 AND dataset_id = $2 \
+                 AND file_sha256 = $3 AND protocols = $4",
+            )
+            .bind(method_id)
+            .bind(new.dataset_id)
+            .bind(new.file_sha256)
+            .bind(protocols_to_text(new.protocols))
+            .fetch_optional(&mut *tx)
+            .await?;
+            if let Some(row) = same {
+                tx.rollback().await?;
+                return Ok(Created::Duplicate(row.try_get("id")?));
+            }
+        }
+        if let Some(limit) = fair_use {
+            let times: Vec<i64> = sqlx::query(
+                "SELECT created_at FROM submissions WHERE owner_id = $1 AND dataset_id = $2 \
+                 AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') ORDER BY created_at",
+            )
+            .bind(new.owner_id)
+            .bind(new.dataset_id)
+            .bind(limit.since)
+            .fetch_all(&mut *tx)
+            .await?
+            .iter()
+            .map(|r| r.try_get("created_at"))
+            .collect::<Result<_, _>>()?;
+            if times.len() >= limit.limit {
+                tx.rollback().await?;
+                return Ok(Created::Limited { times });
+            }
+        }
+        let now = now_ms();
+        let method_id = match method_id {
+            Some(id) => {
+                update_method_meta(&mut tx, id, new.meta).await?;
+                id
+            }
+            None => sqlx::query(
+                "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
+                 modality, created_at, owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id",
+            )
+            .bind(new.method.as_str())
+            .bind(new.meta.description.as_str())
+            .bind(new.meta.paper_url.as_str())
+            .bind(new.meta.code_url.as_str())
+            .bind(new.meta.training_data.map_or("", |t| t.as_str()))
+            .bind(new.meta.modality.map_or("", |m| m.as_str()))
+            .bind(now)
+            .bind(new.owner_id)
+            .fetch_one(&mut *tx)
+            .await?
+            .try_get("id")?,
+        };
+        let preflight = serde_json::to_string(new.preflight).map_err(|e| StoreError::Corrupt {
+            column: "preflight_json",
+            value: e.to_string(),
+        })?;
+        let id: i64 = sqlx::query(
+            "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
+             file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
+             owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12) RETURNING id",
+        )
+        .bind(method_id)
+        .bind(new.dataset_id)
+        .bind(protocols_to_text(new.protocols))
+        .bind(i64::from(new.visibility == Visibility::Public))
+        .bind(new.file_name)
+        .bind(new.file_sha256)
+        .bind(new.file_size)
+        .bind(new.estimates_count)
+        .bind(new.hardware.as_str())
+        .bind(preflight)
+        .bind(now)
+        .bind(new.owner_id)
+        .fetch_one(&mut *tx)
+        .await?
+        .try_get("id")?;
+        tx.commit().await?;
+        Ok(Created::New(id))
+    }
+
+    pub async fn submission(&self, id: i64) -> StoreResult<Option<SubmissionRow>> {
+        let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.id = $1");
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.as_ref().map(submission).transpose()
+    }
+
+    /// Public submissions of a method, newest first.
+    pub async fn public_submissions_of_method(
+        &self,
+        method_id: i64,
+    ) -> StoreResult<Vec<SubmissionRow>> {
+        let sql = format!(
+            "SELECT {SUBMISSION_COLUMNS} WHERE s.method_id = $1 AND s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(method_id)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(submission).collect()
+    }
+
+    /// Public submissions, newest first.
+    pub async fn recent_public_submissions(&self, limit: i64) -> StoreResult<Vec<SubmissionRow>> {
+        let sql = format!(
+            "SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC LIMIT $1"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(limit)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(submission).collect()
+    }
+
+    /// Whether any submission exists at all (the demo set-up runs on an empty service only).
+    pub async fn has_submissions(&self) -> StoreResult<bool> {
+        let row = sqlx::query("SELECT COUNT(*) AS n FROM submissions")
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(row.try_get::<i64, _>("n")? > 0)
+    }
+
+    /// Whether any submission uses the stored file of this content hash.
+    pub async fn file_in_use(&self, sha256: &str) -> StoreResult<bool> {
+        let row = sqlx::query("SELECT COUNT(*) AS n FROM submissions WHERE file_sha256 = $1")
+            .bind(sha256)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(row.try_get::<i64, _>("n")? > 0)
+    }
+
+    /// How many submissions wait before this one (0 = it is next or running).
+    pub async fn queue_position(&self, id: i64) -> StoreResult<i64> {
+        let row = sqlx::query(
+            "SELECT COUNT(*) AS n FROM submissions WHERE status = 'queued' AND id < $1",
+        )
+        .bind(id)
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(row.try_get("n")?)
+    }
+
+    /// Estimates waiting or being evaluated before submission `id`, for time estimates.
+    pub async fn estimates_ahead(&self, id: i64) -> StoreResult<i64> {
+        let row = sqlx::query(
+            "SELECT CAST(COALESCE(SUM(estimates_count), 0) AS BIGINT) AS n FROM submissions \
+             WHERE status IN ('queued', 'running') AND id < $1",
+        )
+        .bind(id)
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(row.try_get("n")?)
+    }
+
+    /// Hides or shows a submission; false when there is no such submission.
+    pub async fn set_hidden(&self, id: i64, hidden: bool) -> StoreResult<bool> {
+        let done = sqlx::query("UPDATE submissions SET hidden = $1 WHERE id = $2")
+            .bind(i64::from(hidden))
+            .bind(id)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
+    /// until the new ones replace them. False when it is missing or not finished.
+    pub async fn rerun(&self, id: i64) -> StoreResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET status = 'queued', progress = 0, attempts = 0, error = NULL, \
+             fault = NULL, worker = NULL, lease_until = NULL WHERE id = $1 AND status IN ('done', 'failed')",
+        )
+        .bind(id)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Deletes a submission and its scores; `None` when there is no such submission.
+    pub async fn delete_submission(&self, id: i64) -> StoreResult<Option<Deleted>> {
+        let mut tx = self.write_transaction().await?;
+        let Some(row) = sqlx::query("SELECT file_sha256 FROM submissions WHERE id = $1")
+            .bind(id)
+            .fetch_optional(&mut *tx)
+            .await?
+        else {
+            tx.rollback().await?;
+            return Ok(None);
+        };
+        let sha: String = row.try_get("file_sha256")?;
+        sqlx::query("DELETE FROM scores WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query("DELETE FROM submissions WHERE id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        let others = sqlx::query("SELECT COUNT(*) AS n FROM submissions WHERE file_sha256 = $1")
+            .bind(&sha)
+            .fetch_one(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(Some(Deleted {
+            file_unused: others.try_get::<i64, _>("n")? == 0,
+            file_sha256: sha,
+        }))
+    }
+}
+
+/// Updates the metadata fields a new upload gives; the others keep their stored values.
+async fn update_method_meta(
+    tx: &mut sqlx::Transaction<'static, sqlx::Any>,
+    id: i64,
+    meta: &MethodMeta,
+) -> StoreResult<()> {
+    for (column, value) in [
+        ("description", meta.description.as_str()),
+        ("paper_url", meta.paper_url.as_str()),
+        ("code_url", meta.code_url.as_str()),
+        (
+            "training_data",
+            meta.training_data.map_or("", |t| t.as_str()),
+        ),
+        ("modality", meta.modality.map_or("", |m| m.as_str())),
+    ] {
+        if !value.is_empty() {
+            // `column` comes from the list above, never from the request.
+            let sql = format!("UPDATE methods SET {column} = $1 WHERE id = $2");
+            sqlx::query(sqlx::AssertSqlSafe(sql))
+                .bind(value)
+                .bind(id)
+                .execute(&mut **tx)
+                .await?;
+        }
+    }
+    Ok(())
+}
