@@ -1,17 +1,15 @@
 //! `poseboard eval` and `poseboard check-results` run as a user runs them, on the bundled
 //! reference fixture, checked against the scores bop_toolkit computed.
 
-use std::path::{Path, PathBuf};
+mod common;
+
 use std::process::{Command, Output};
 
+use common::{BIN, fixtures};
 use serde_json::Value;
 
-fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/reference")
-}
-
 fn poseboard(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_poseboard"))
+    Command::new(BIN)
         .args(args)
         .output()
         .expect("poseboard runs")

@@ -1,0 +1,104 @@
+//! Crash recovery: a server killed with SIGKILL in the middle of an evaluation takes the job up
+//! again when it restarts, finishing it once, with the scores `poseboard eval` gives and no
+//! submission lost or duplicated. Leases and the queue live in the database, so this runs on
+//! both.
+
+mod common;
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{BIN, Db, TestDb, both_databases, cli_report, get_json, start, upload, wait_done};
+use serde_json::Value;
+
+/// Kills the server with SIGKILL while it evaluates, starts it again, and checks that the
+/// job finishes with the scores `poseboard eval` gives, once.
+fn crash_and_resume(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = dir.path().join("datasets");
+    // A dataset large enough that one evaluation takes a few seconds on one thread.
+    let status = Command::new(BIN)
+        .args([
+            "dataset",
+            "synth",
+            "--scenes",
+            "12",
+            "--images-per-scene",
+            "10",
+        ])
+        .arg(datasets.join("synthbig"))
+        .stdout(Stdio::null())
+        .status()
+        .expect("synth runs");
+    assert!(status.success());
+    let results_dir = dir.path().join("results");
+    let status = Command::new(BIN)
+        .args(["dataset", "demo-results"])
+        .arg(datasets.join("synthbig"))
+        .arg(&results_dir)
+        .stdout(Stdio::null())
+        .status()
+        .expect("demo-results runs");
+    assert!(status.success());
+    let file = std::fs::read_dir(&results_dir)
+        .expect("results")
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .find(|p| p.to_string_lossy().contains("noisy"))
+        .expect("a noisy demo result");
+
+    let db = TestDb::new(kind, "crash");
+    let data = dir.path().join("data");
+    let args = ["--eval-threads", "1"];
+    let id;
+    {
+        let server = start(&data, &datasets, &db, &args);
+        let r = upload(&server, "crashy", "synthbig", &file, None);
+        assert_eq!(r.status(), 202);
+        id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+        // Wait until the job runs and has made progress, then kill the server hard.
+        let start_wait = Instant::now();
+        loop {
+            let s = get_json(&format!("{}/api/v1/submissions/{id}", server.base));
+            if s["status"] == "running" && s["progress"].as_f64().unwrap_or(0.0) > 0.0 {
+                break;
+            }
+            assert_ne!(
+                s["status"], "done",
+                "{kind:?}: finished before it could be killed; make the dataset larger"
+            );
+            assert!(
+                start_wait.elapsed() < Duration::from_secs(60),
+                "{kind:?}: never ran: {s}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let mut server = server;
+        server.child.kill().expect("SIGKILL");
+        server.child.wait().expect("reaped");
+    }
+    let server = start(&data, &datasets, &db, &args);
+    let done = wait_done(&server.base, id, Duration::from_secs(120));
+    assert_eq!(done["attempts"], 2, "{kind:?}: taken up again exactly once");
+    let want = cli_report(&datasets.join("synthbig"), &file, "bop19");
+    assert_eq!(
+        done["scores"]["bop19"]["bop19_average_recall"],
+        want["bop19_average_recall"]
+    );
+    let board = get_json(&format!(
+        "{}/api/v1/leaderboards/bop19?dataset=synthbig",
+        server.base
+    ));
+    assert_eq!(
+        board["rows"].as_array().map(Vec::len),
+        Some(1),
+        "one score set"
+    );
+    let listed = get_json(&format!("{}/api/v1/submissions", server.base));
+    assert_eq!(
+        listed["submissions"].as_array().map(Vec::len),
+        Some(1),
+        "no submission lost or duplicated"
+    );
+}
+both_databases!(crash_and_resume);
