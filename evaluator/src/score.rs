@@ -5,7 +5,8 @@
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::matching::{EstimateErrors, NTop, match_image_object};
 use crate::stats::{mean, recall};
@@ -25,13 +26,25 @@ pub struct ScoredImage {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Scores {
     pub recall: f64,
+    #[serde(deserialize_with = "id_keyed")]
     pub obj_recalls: BTreeMap<u32, f64>,
     pub mean_obj_recall: f64,
+    #[serde(deserialize_with = "id_keyed")]
     pub scene_recalls: BTreeMap<u32, f64>,
     pub mean_scene_recall: f64,
     pub gt_count: usize,
     pub targets_count: usize,
     pub tp_count: usize,
+}
+
+/// Reads a map keyed by object or scene id. The report flattens `Scores` into itself, and
+/// through `#[serde(flatten)]` serde hands JSON keys over as strings that its integer
+/// deserializer refuses, so a stored report would come back without its scores.
+fn id_keyed<'de, D: Deserializer<'de>>(d: D) -> Result<BTreeMap<u32, f64>, D::Error> {
+    BTreeMap::<String, f64>::deserialize(d)?
+        .into_iter()
+        .map(|(k, v)| k.parse().map(|k| (k, v)).map_err(D::Error::custom))
+        .collect()
 }
 
 /// Everything matching produced for one threshold: the scores and, per image and gt id,

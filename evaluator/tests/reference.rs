@@ -417,3 +417,18 @@ fn cancelling_stops_the_evaluation() {
     );
     assert!(matches!(outcome, Err(evaluator::Error::Cancelled)));
 }
+
+/// The service stores reports as JSON and reads them back: nothing may be lost on the way
+/// (the flattened eccv18 scores included).
+#[test]
+fn reports_read_back_from_json_unchanged() {
+    for protocol in [
+        Protocol::named(ProtocolName::Eccv18),
+        Protocol::named(ProtocolName::Bop19),
+    ] {
+        let report = run("noisemedium_synthA-test", &protocol).report;
+        let json = serde_json::to_string(&report).expect("serialises");
+        let back: evaluator::Report = serde_json::from_str(&json).expect("deserialises");
+        assert_eq!(back, report, "{:?}", protocol.name);
+    }
+}

@@ -69,7 +69,7 @@ pub async fn register(
     is_admin: bool,
 ) -> AppResult<i64> {
     let hash = hash_password(password).await?;
-    match store.create_user(name.as_str(), &hash, is_admin).await {
+    match store.create_user(name, &hash, is_admin).await {
         Ok(id) => Ok(id),
         Err(StoreError::Unique { .. }) => {
             Err(AppError::Conflict(format!("the name `{name}` is taken")))
@@ -82,7 +82,7 @@ pub async fn register(
 pub async fn create_token(store: &Store, user_id: i64, label: &TokenLabel) -> AppResult<String> {
     let token = format!("{TOKEN_PREFIX}{}", new_secret());
     store
-        .create_token(user_id, label.as_str(), &sha256_hex(&token))
+        .create_token(user_id, label, &sha256_hex(&token))
         .await?;
     Ok(token)
 }

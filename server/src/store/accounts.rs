@@ -7,6 +7,7 @@ use sqlx::Row;
 
 use super::{Store, StoreError, StoreResult};
 use crate::clock::now_ms;
+use crate::domain::{TokenLabel, UserName};
 
 #[derive(Clone, Debug, Serialize)]
 pub struct User {
@@ -32,9 +33,10 @@ pub struct Session {
 }
 
 impl Store {
+    /// Creates an account; a taken name is [`StoreError::Unique`].
     pub async fn create_user(
         &self,
-        name: &str,
+        name: &UserName,
         password_hash: &str,
         is_admin: bool,
     ) -> StoreResult<i64> {
@@ -42,7 +44,7 @@ impl Store {
             "INSERT INTO users (name, password_hash, is_admin, created_at) VALUES ($1, $2, $3, $4) \
              ON CONFLICT (name) DO NOTHING RETURNING id",
         )
-        .bind(name)
+        .bind(name.as_str())
         .bind(password_hash)
         .bind(is_admin as i64)
         .bind(now_ms())
@@ -122,14 +124,14 @@ impl Store {
     pub async fn create_token(
         &self,
         user_id: i64,
-        name: &str,
+        label: &TokenLabel,
         token_hash: &str,
     ) -> StoreResult<i64> {
         let row = sqlx::query(
             "INSERT INTO api_tokens (user_id, name, token_hash, created_at) VALUES ($1, $2, $3, $4) RETURNING id",
         )
         .bind(user_id)
-        .bind(name)
+        .bind(label.as_str())
         .bind(token_hash)
         .bind(now_ms())
         .fetch_one(&self.pool)

@@ -91,6 +91,11 @@ fn pg_exec(url: &str, sql: &str) {
 }
 
 impl TestDb {
+    /// The PostgreSQL database's URL; `None` for SQLite (a file in the data directory).
+    pub fn url(&self) -> Option<String> {
+        self.url.clone()
+    }
+
     pub fn new(kind: Db, name: &str) -> TestDb {
         match kind {
             Db::Sqlite => TestDb {

@@ -1,0 +1,389 @@
+//! The store's own conformance suite: every operation of `server::store::Store` run against a
+//! fresh SQLite file and a fresh PostgreSQL database, so that the two backends behave the same
+//! (typed rows, unique violations, transactions under concurrency, corrupt values refused).
+
+mod common;
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use common::{Db, TestDb, both_databases, fixtures};
+use evaluator::protocol::{Protocol, ProtocolName};
+use evaluator::{Dataset, NoProgress, Report, evaluate, results::load_results};
+use server::domain::{Hardware, MethodName, Modality, TokenLabel, UserName, Visibility};
+use server::preflight::Preflight;
+use server::store::audit::AdminAction;
+use server::store::datasets::DatasetRow;
+use server::store::methods::MethodMeta;
+use server::store::submissions::{Created, FairUse, Fault, NewSubmission, Status};
+use server::store::{Store, StoreError};
+
+/// A migrated store on a fresh database of `kind`, with its URL (for raw SQL).
+async fn store(kind: Db, db: &TestDb, dir: &Path) -> (Store, String) {
+    let url = db
+        .url()
+        .unwrap_or_else(|| server::store::sqlite_url(dir));
+    let _ = kind;
+    let store = Store::connect(&url).await.expect("connects");
+    store.migrate().await.expect("migrates");
+    (store, url)
+}
+
+fn run(body: impl std::future::Future<Output = ()>) {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(4)
+        .enable_all()
+        .build()
+        .expect("runtime")
+        .block_on(body);
+}
+
+async fn raw(url: &str, sql: &str) {
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(url).await.expect("raw connection");
+    sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
+        .execute(&pool)
+        .await
+        .expect("raw statement");
+    pool.close().await;
+}
+
+fn dataset_row(name: &str) -> DatasetRow {
+    DatasetRow {
+        id: 0,
+        name: name.to_string(),
+        path: fixtures().join("dataset").display().to_string(),
+        objects_count: 4,
+        scenes_count: 2,
+        images_count: 8,
+        targets_count: 28,
+        instances_count: 33,
+        image_width: 640,
+        image_height: 480,
+        added_at: 0,
+        retired: false,
+    }
+}
+
+async fn user(store: &Store, name: &str) -> i64 {
+    store
+        .create_user(&UserName::parse(name).unwrap(), "$argon2id$not-a-real-hash", false)
+        .await
+        .expect("user created")
+}
+
+struct Fixture {
+    method: MethodName,
+    meta: MethodMeta,
+    hardware: Hardware,
+    preflight: Preflight,
+}
+
+fn fixture(method: &str) -> Fixture {
+    Fixture {
+        method: MethodName::parse(method).unwrap(),
+        meta: MethodMeta {
+            modality: Some(Modality::RgbD),
+            ..MethodMeta::default()
+        },
+        hardware: Hardware::parse("a GPU").unwrap(),
+        preflight: Preflight {
+            estimates: 35,
+            warnings: vec!["1 estimate is ignored".into()],
+            ..Preflight::default()
+        },
+    }
+}
+
+fn new_submission<'a>(
+    f: &'a Fixture,
+    owner_id: i64,
+    dataset_id: i64,
+    sha: &'a str,
+    protocols: &'a [ProtocolName],
+) -> NewSubmission<'a> {
+    NewSubmission {
+        owner_id,
+        method: &f.method,
+        meta: &f.meta,
+        dataset_id,
+        protocols,
+        visibility: Visibility::Public,
+        file_name: "m_synthA-test.csv",
+        file_sha256: sha,
+        file_size: 1234,
+        estimates_count: 35,
+        hardware: &f.hardware,
+        preflight: &f.preflight,
+    }
+}
+
+fn reference_report(protocol: ProtocolName) -> Report {
+    let dataset = Dataset::load(&fixtures().join("dataset")).expect("reference dataset");
+    let results = load_results(&fixtures().join("results/noisemedium_synthA-test.csv"))
+        .expect("reference results");
+    evaluate(
+        &dataset,
+        &results,
+        &Protocol::named(protocol),
+        &NoProgress,
+        &AtomicBool::new(false),
+    )
+    .expect("evaluates")
+    .report
+}
+
+fn datasets_stay_retired(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_datasets");
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let row = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        assert!(!row.retired);
+        assert_eq!(store.datasets().await.unwrap(), vec![row.clone()]);
+        assert!(store.retire_dataset("synthA").await.unwrap());
+        assert!(!store.retire_dataset("synthA").await.unwrap());
+        // Registering again (a restart) keeps it retired.
+        let again = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        assert_eq!(again.id, row.id);
+        assert!(again.retired);
+        assert!(store.datasets().await.unwrap().is_empty());
+        assert!(store.dataset_by_name("synthA").await.unwrap().is_none());
+        assert!(store.dataset(row.id).await.unwrap().is_some_and(|d| d.retired));
+        assert!(store.revive_dataset("synthA").await.unwrap());
+        assert_eq!(store.dataset_by_name("synthA").await.unwrap().map(|d| d.id), Some(row.id));
+    });
+}
+both_databases!(datasets_stay_retired);
+
+fn submissions_queue_and_scores(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_lifecycle");
+    let reports = [
+        reference_report(ProtocolName::Bop19),
+        reference_report(ProtocolName::Eccv18),
+    ];
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let owner = user(&store, "alice").await;
+        let f = fixture("CosyPose");
+        let protocols = [ProtocolName::Bop19, ProtocolName::Eccv18];
+        let new = new_submission(&f, owner, ds.id, "aaaa", &protocols);
+        let Created::New(id) = store.create_submission(&new, None).await.unwrap() else {
+            panic!("a new submission");
+        };
+        // The same file for the same method is the same submission.
+        assert_eq!(
+            store.create_submission(&new, None).await.unwrap(),
+            Created::Duplicate(id)
+        );
+        let row = store.submission(id).await.unwrap().expect("stored");
+        assert_eq!(row.status, Status::Queued);
+        assert_eq!(row.protocols, protocols);
+        assert_eq!(row.visibility, Visibility::Public);
+        assert_eq!(row.preflight, f.preflight);
+        assert_eq!(row.method, "CosyPose");
+        assert_eq!(row.hardware, "a GPU");
+        let method = store.method(row.method_id).await.unwrap().expect("method");
+        assert_eq!(method.modality, Some(Modality::RgbD));
+        assert_eq!(method.training_data, None);
+        assert_eq!(store.queue_position(id).await.unwrap(), 0);
+        assert_eq!(store.estimates_ahead(i64::MAX).await.unwrap(), 35);
+
+        // The queue: claim, heartbeat, finish only while the job is the worker's own.
+        let job = store.claim("w1", 60_000, 3).await.unwrap().expect("a job");
+        assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 1));
+        assert!(store.claim("w2", 60_000, 3).await.unwrap().is_none());
+        assert!(store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap());
+        assert!(!store.heartbeat(id, "w2", 60_000, 0.5).await.unwrap());
+        assert!(!store.finish(id, "w2", &reports).await.unwrap());
+        assert!(store.finish(id, "w1", &reports).await.unwrap());
+        let done = store.submission(id).await.unwrap().unwrap();
+        assert_eq!((done.status, done.progress), (Status::Done, 1.0));
+        assert!(!store.fail(id, "w1", "late", Fault::Service).await.unwrap());
+
+        // Reports come back as they were stored, one per protocol.
+        let mut stored = store.reports_of_submission(id).await.unwrap();
+        stored.sort_by_key(|r| r.protocol);
+        let mut expected = reports.to_vec();
+        expected.sort_by_key(|r| r.protocol);
+        assert_eq!(stored, expected);
+
+        // The leaderboard entry, with its per-object scores, in one read.
+        let board = store.leaderboard(ProtocolName::Bop19, None).await.unwrap();
+        assert_eq!(board.len(), 1);
+        assert_eq!(board[0].score.score, reports[0].headline());
+        assert_eq!(board[0].modality, Some(Modality::RgbD));
+        let objects: Vec<(i64, f64)> = reports[0]
+            .obj_average_recalls
+            .iter()
+            .map(|(&o, &v)| (i64::from(o), v))
+            .collect();
+        assert_eq!(board[0].object_scores.clone().into_iter().collect::<Vec<_>>(), objects);
+        assert!(store.leaderboard(ProtocolName::Bop19, Some(ds.id + 1)).await.unwrap().is_empty());
+
+        // Hidden: off the boards; re-run: queued again; delete: gone, file unused.
+        assert!(store.set_hidden(id, true).await.unwrap());
+        assert!(store.leaderboard(ProtocolName::Eccv18, None).await.unwrap().is_empty());
+        assert!(store.recent_public_submissions(10).await.unwrap().is_empty());
+        assert!(store.rerun(id).await.unwrap());
+        assert!(!store.rerun(id).await.unwrap());
+        assert_eq!(store.submission(id).await.unwrap().unwrap().status, Status::Queued);
+        let deleted = store.delete_submission(id).await.unwrap().expect("deleted");
+        assert_eq!((deleted.file_sha256.as_str(), deleted.file_unused), ("aaaa", true));
+        assert!(store.delete_submission(id).await.unwrap().is_none());
+        assert!(!store.file_in_use("aaaa").await.unwrap());
+    });
+}
+both_databases!(submissions_queue_and_scores);
+
+fn fair_use_is_exact_under_concurrency(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_fair_use");
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let owner = user(&store, "bob").await;
+        // Twelve parallel uploads of different files for a method that does not exist yet,
+        // against a limit of 5: exactly five are created, the others are refused, none fails.
+        let tasks: Vec<_> = (0..12)
+            .map(|i| {
+                let store = store.clone();
+                tokio::spawn(async move {
+                    let f = fixture("NewMethod");
+                    let sha = format!("sha{i}");
+                    let protocols = [ProtocolName::Bop19];
+                    let new = new_submission(&f, owner, ds.id, &sha, &protocols);
+                    let limit = FairUse { limit: 5, since: 0 };
+                    store.create_submission(&new, Some(limit)).await
+                })
+            })
+            .collect();
+        let mut created = 0;
+        let mut limited = 0;
+        for t in tasks {
+            match t.await.unwrap().expect("no store error") {
+                Created::New(_) => created += 1,
+                Created::Limited { times } => {
+                    assert_eq!(times.len(), 5);
+                    limited += 1;
+                }
+                Created::Duplicate(_) => panic!("different files are not duplicates"),
+            }
+        }
+        assert_eq!((created, limited), (5, 7));
+        // A refused upload of a new method leaves no method behind.
+        let other = user(&store, "carol").await;
+        let f = fixture("NeverCreated");
+        let protocols = [ProtocolName::Bop19];
+        let new = new_submission(&f, other, ds.id, "x", &protocols);
+        let refused = store
+            .create_submission(&new, Some(FairUse { limit: 0, since: 0 }))
+            .await
+            .unwrap();
+        assert_eq!(refused, Created::Limited { times: Vec::new() });
+        assert!(
+            store
+                .public_methods()
+                .await
+                .unwrap()
+                .iter()
+                .all(|m| m.name != "NeverCreated")
+        );
+    });
+}
+both_databases!(fair_use_is_exact_under_concurrency);
+
+fn accounts_and_audit(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_accounts");
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let id = user(&store, "dora").await;
+        let taken = store
+            .create_user(&UserName::parse("dora").unwrap(), "h", true)
+            .await;
+        assert!(matches!(taken, Err(StoreError::Unique { .. })), "{taken:?}");
+        let (u, hash) = store.user_for_login("dora").await.unwrap().expect("found");
+        assert_eq!((u.id, u.is_admin, hash.as_str()), (id, false, "$argon2id$not-a-real-hash"));
+
+        store.create_session(id, "s-hash", "csrf", 60_000).await.unwrap();
+        let s = store.session("s-hash").await.unwrap().expect("live session");
+        assert_eq!((s.user.id, s.csrf_token.as_str()), (id, "csrf"));
+        store.create_session(id, "old", "c", -1).await.unwrap();
+        assert!(store.session("old").await.unwrap().is_none(), "expired");
+        store.delete_session("s-hash").await.unwrap();
+        assert!(store.session("s-hash").await.unwrap().is_none());
+
+        let label = TokenLabel::parse("ci").unwrap();
+        let tid = store.create_token(id, &label, "t-hash").await.unwrap();
+        assert_eq!(store.user_for_token("t-hash").await.unwrap().map(|u| u.id), Some(id));
+        assert!(store.tokens(id).await.unwrap()[0].last_used_at.is_some());
+        assert!(store.revoke_token(id, tid).await.unwrap());
+        assert!(!store.revoke_token(id, tid).await.unwrap());
+        assert!(store.user_for_token("t-hash").await.unwrap().is_none());
+        let dup = store.create_token(id, &label, "t-hash").await;
+        assert!(matches!(dup, Err(StoreError::Unique { .. })), "{dup:?}");
+
+        store
+            .record_login_failure(&["user:dora".into(), "addr:1".into()])
+            .await
+            .unwrap();
+        assert_eq!(store.login_failures("user:dora", 0).await.unwrap().len(), 1);
+        store.clear_login_failures("user:dora").await.unwrap();
+        assert!(store.login_failures("user:dora", 0).await.unwrap().is_empty());
+        assert_eq!(store.login_failures("addr:1", 0).await.unwrap().len(), 1);
+
+        store.audit(id, AdminAction::Hide, "submission 1").await.unwrap();
+        store.audit(id, AdminAction::AddDataset, "lmo").await.unwrap();
+        let log = store.audit_log(10).await.unwrap();
+        let actions: Vec<AdminAction> = log.iter().map(|e| e.action).collect();
+        assert_eq!(actions, [AdminAction::AddDataset, AdminAction::Hide]);
+        assert_eq!(log[0].actor, "dora");
+    });
+}
+both_databases!(accounts_and_audit);
+
+fn unknown_stored_values_are_errors(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_corrupt");
+    run(async {
+        let (store, url) = store(kind, &db, dir.path()).await;
+        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let owner = user(&store, "eve").await;
+        let f = fixture("M");
+        let protocols = [ProtocolName::Bop19];
+        let Created::New(id) = store
+            .create_submission(&new_submission(&f, owner, ds.id, "s", &protocols), None)
+            .await
+            .unwrap()
+        else {
+            panic!("created");
+        };
+        raw(&url, &format!("UPDATE submissions SET status = 'paused' WHERE id = {id}")).await;
+        match store.submission(id).await {
+            Err(StoreError::Corrupt { column, value }) => {
+                assert_eq!((column, value.as_str()), ("status", "paused"))
+            }
+            other => panic!("expected a corrupt status, got {other:?}"),
+        }
+        raw(&url, &format!("UPDATE submissions SET status = 'queued', protocols = 'bop99' WHERE id = {id}")).await;
+        assert!(matches!(
+            store.submission(id).await,
+            Err(StoreError::Corrupt { column: "protocols", .. })
+        ));
+        raw(&url, &format!("UPDATE submissions SET protocols = 'bop19' WHERE id = {id}")).await;
+        raw(&url, &format!("UPDATE methods SET modality = 'thermal' WHERE owner_id = {owner}")).await;
+        assert!(matches!(
+            store.public_methods().await,
+            Err(StoreError::Corrupt { column: "modality", .. })
+        ));
+        raw(&url, "INSERT INTO audit_log (actor_id, action, target, at) SELECT id, 'promote', 'x', 0 FROM users").await;
+        assert!(matches!(
+            store.audit_log(5).await,
+            Err(StoreError::Corrupt { column: "action", .. })
+        ));
+    });
+}
+both_databases!(unknown_stored_values_are_errors);
