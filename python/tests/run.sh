@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The Python package's tests: builds the abi3 wheel with `maturin build --release`, installs it
-# with pytest in a fresh virtual environment (binary packages only: no Rust toolchain is used by
-# the install) and runs python/tests, which compare the package with the `poseboard` command of
-# the service: POSEBOARD_BIN names it, by default it is built here (cargo build -p server).
+# with pytest and mypy in a fresh virtual environment (binary packages only: the install uses no
+# Rust toolchain) and runs python/tests, which compare the package with bop_toolkit's reference
+# scores and with the service's `poseboard` command. POSEBOARD_BIN names that command; after
+# `cargo test --workspace`, pass POSEBOARD_BIN=target/debug/poseboard to reuse its build, since a
+# `cargo build -p server` here would resolve other features and rebuild. Unset, it is built here.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 work="$root/target/python"
@@ -27,6 +29,6 @@ fi
 
 rm -rf "$work/venv"
 "$python" -m venv "$work/venv"
-"$work/venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: "$wheel" pytest
+"$work/venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: "$wheel" pytest mypy
 cd "$root/python/tests"
 PATH="$work/venv/bin:$PATH" "$work/venv/bin/python" -m pytest -q -p no:cacheprovider "$@"

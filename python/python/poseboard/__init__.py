@@ -141,6 +141,8 @@ def _ids(values: Any, name: str) -> np.ndarray:
 def _rows_csv(results: Any) -> bytes:
     """Rows (mappings, as bop_toolkit's ``inout.load_bop_results`` returns them) or a numpy
     structured array as the text of a result file, so they pass the checks a file passes."""
+    rows: Any
+    columns: dict[str, Any] = {}
     if isinstance(results, np.ndarray):
         names = results.dtype.names or ()
         missing = [f for f in ("scene_id", "im_id", "obj_id", "score", "R", "t") if f not in names]
@@ -149,11 +151,10 @@ def _rows_csv(results: Any) -> bytes:
         rows = results.reshape(-1)
         columns = {f: rows[f] for f in names}
         n = len(rows)
-        time = columns["time"] if "time" in names else np.full(n, -1.0)
+        time: Any = columns["time"] if "time" in names else np.full(n, -1.0)
     else:
         rows = list(results)
         n = len(rows)
-        columns = {}
         for field in ("scene_id", "im_id", "obj_id", "score", "R", "t"):
             try:
                 columns[field] = [row[field] for row in rows]
@@ -200,10 +201,11 @@ def _evaluate_json(
 ) -> tuple[str, Optional[str]]:
     """:func:`evaluate`, returning the JSON texts ``poseboard eval`` writes (``--out``, and
     with ``with_errors`` ``--errors-out``)."""
+    results_path, results_csv = None, None
     if isinstance(results, (str, os.PathLike)):
-        source = {"results_path": os.fspath(results)}
+        results_path = os.fspath(results)
     else:
-        source = {"results_csv": _rows_csv(results)}
+        results_csv = _rows_csv(results)
     return _native.evaluate(
         _dataset_arg(dataset),
         protocol,
@@ -220,7 +222,8 @@ def _evaluate_json(
         max_sym_disc_step=max_sym_disc_step,
         extra_errors=[extra_errors] if isinstance(extra_errors, str) else list(extra_errors),
         ad_threshold=ad_threshold,
-        **source,
+        results_path=results_path,
+        results_csv=results_csv,
     )
 
 
@@ -297,7 +300,8 @@ def evaluate(
         extra_errors=extra_errors,
         ad_threshold=ad_threshold,
     )
-    return json.loads(report)
+    parsed: dict[str, Any] = json.loads(report)
+    return parsed
 
 
 def check_results(
@@ -393,7 +397,7 @@ def vsd(
         depth.shape[0],
         _mat3(K, "K"),
         float(delta),
-        _floats_list(taus),
+        _floats_list(taus) or [],
         bool(normalized_by_diameter),
         float(diameter),
         _points(model["pts"]),

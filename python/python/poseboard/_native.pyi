@@ -3,6 +3,7 @@
 
 from typing import Callable, Optional, Union
 import os
+import pathlib
 
 EVALUATOR_VERSION: str
 
@@ -13,7 +14,7 @@ class Dataset:
     @property
     def name(self) -> str: ...
     @property
-    def root(self) -> str: ...
+    def root(self) -> pathlib.Path: ...
     @property
     def obj_ids(self) -> list[int]: ...
     def model(self, obj_id: int) -> tuple[bytes, bytes]: ...

@@ -140,7 +140,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         sys.stdout.write(table(report))
         if args.out is not None:
             _write(args.out, report_text)
-        if args.errors_out is not None:
+        if args.errors_out is not None and errors_text is not None:
             _write(args.errors_out, errors_text)
     except (OSError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
