@@ -58,7 +58,9 @@ class CliRun:
     """One `poseboard eval` run of the Rust command: exit code, stdout, stderr, and the
     texts it wrote with --out and --errors-out."""
 
-    def __init__(self, returncode: int, stdout: str, stderr: str, out: str | None, errors: str | None):
+    def __init__(
+        self, returncode: int, stdout: str, stderr: str, out: str | None, errors: str | None
+    ):
         self.returncode = returncode
         self.stdout = stdout
         self.stderr = stderr
@@ -77,7 +79,10 @@ def run_eval(command: list[str], args: list[str], tmp: pathlib.Path) -> CliRun:
         text=True,
         timeout=600,
     )
-    read = lambda p: p.read_text() if p.exists() else None  # noqa: E731
+
+    def read(path: pathlib.Path) -> str | None:
+        return path.read_text() if path.exists() else None
+
     return CliRun(proc.returncode, proc.stdout, proc.stderr, read(out), read(errors))
 
 

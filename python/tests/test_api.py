@@ -11,7 +11,11 @@ from conftest import result_file
 
 def test_progress_reports_every_evaluated_estimate(dataset):
     calls = []
-    report = poseboard.evaluate(dataset, result_file("multi_synthA-test"), progress=lambda done, total: calls.append((done, total)))
+    report = poseboard.evaluate(
+        dataset,
+        result_file("multi_synthA-test"),
+        progress=lambda done, total: calls.append((done, total)),
+    )
     n = report["estimates_evaluated"]
     assert calls[-1] == (n, n)
     assert all(total == n for _, total in calls)
@@ -28,7 +32,9 @@ def test_an_exception_in_the_progress_callback_stops_the_evaluation(dataset):
 
 def test_the_number_of_threads_does_not_change_the_report(dataset):
     path = result_file("noisemedium_synthA-test")
-    assert poseboard.evaluate(dataset, path, threads=1) == poseboard.evaluate(dataset, path, threads=2)
+    assert poseboard.evaluate(dataset, path, threads=1) == poseboard.evaluate(
+        dataset, path, threads=2
+    )
 
 
 @pytest.mark.parametrize(
@@ -48,7 +54,9 @@ def test_invalid_parameters_raise_value_error(dataset, params, message):
 
 
 def test_the_report_names_the_evaluator_and_the_parameters(dataset):
-    report = poseboard.evaluate(dataset, result_file("gtexact_synthA-test"), "eccv18", tau=30, theta=[0.2])
+    report = poseboard.evaluate(
+        dataset, result_file("gtexact_synthA-test"), "eccv18", tau=30, theta=[0.2]
+    )
     assert report["evaluator_version"] == poseboard.EVALUATOR_VERSION
     assert report["protocol"] == "eccv18"
     assert report["parameters"]["main_tau"] == 30

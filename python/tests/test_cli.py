@@ -20,15 +20,46 @@ CASES = {
     "bop19": ["--results", str(result_file("noisemedium_synthA-test"))],
     "eccv18": ["--results", str(result_file("multi_synthA-test")), "--protocol", "eccv18"],
     "eccv18-overrides": [
-        "--results", str(result_file("symflip_synthA-test")), "--protocol", "eccv18",
-        "--tau", "20,40", "--tau", "60", "--theta", "0.2,0.3", "--delta", "10",
-        "--visib-mode", "bop18", "--visib-gt-min", "0", "--n-top", "-1",
+        "--results",
+        str(result_file("symflip_synthA-test")),
+        "--protocol",
+        "eccv18",
+        "--tau",
+        "20,40",
+        "--tau",
+        "60",
+        "--theta",
+        "0.2,0.3",
+        "--delta",
+        "10",
+        "--visib-mode",
+        "bop18",
+        "--visib-gt-min",
+        "0",
+        "--n-top",
+        "-1",
     ],
     "bop19-overrides": [
-        "--results", str(result_file("extra_synthA-test")), "--threads", "1",
-        "--extra-errors", "add,adi", "--extra-errors", "ad", "--ad-threshold", "0.2",
-        "--tau", "0.1,0.3", "--tau-normalized", "true", "--theta", "0.25", "--n-top", "0",
-        "--max-sym-disc-step", "0.02",
+        "--results",
+        str(result_file("extra_synthA-test")),
+        "--threads",
+        "1",
+        "--extra-errors",
+        "add,adi",
+        "--extra-errors",
+        "ad",
+        "--ad-threshold",
+        "0.2",
+        "--tau",
+        "0.1,0.3",
+        "--tau-normalized",
+        "true",
+        "--theta",
+        "0.25",
+        "--n-top",
+        "0",
+        "--max-sym-disc-step",
+        "0.02",
     ],
     "bop19-no-estimate-for-a-target": ["--results", str(result_file("missing_synthA-test"))],
 }
@@ -48,7 +79,12 @@ def test_poseboard_eval_prints_and_writes_what_the_rust_command_does(rust_eval, 
 
 
 def test_poseboard_eval_refuses_a_malformed_file_naming_its_line(rust_eval, tmp_path):
-    args = ["--dataset", str(DATASET), "--results", str(RESULTS / "malformed" / "wrong-columns_synthA-test.csv")]
+    args = [
+        "--dataset",
+        str(DATASET),
+        "--results",
+        str(RESULTS / "malformed" / "wrong-columns_synthA-test.csv"),
+    ]
     mine = python_eval(args, tmp_path)
     rust = rust_eval(args)
     assert mine.returncode == rust.returncode == 1
@@ -56,7 +92,15 @@ def test_poseboard_eval_refuses_a_malformed_file_naming_its_line(rust_eval, tmp_
     assert mine.out is None
 
 
-@pytest.mark.parametrize("bad", [["--protocol", "bop20"], ["--tau-normalized", "yes"], ["--extra-errors", "vsd"], ["--n-top", "-2"]])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        ["--protocol", "bop20"],
+        ["--tau-normalized", "yes"],
+        ["--extra-errors", "vsd"],
+        ["--n-top", "-2"],
+    ],
+)
 def test_poseboard_eval_refuses_what_poseboard_eval_refuses(rust_eval, tmp_path, bad):
     args = ["--dataset", str(DATASET), "--results", str(result_file("gtexact_synthA-test"))] + bad
     assert rust_eval(args).returncode != 0

@@ -35,7 +35,12 @@ class Reference:
 
     def __init__(self, dataset: poseboard.Dataset):
         self.dataset = dataset
-        self.info = {int(k): v for k, v in json.loads((DATASET / "models_eval" / "models_info.json").read_text()).items()}
+        self.info = {
+            int(k): v
+            for k, v in json.loads(
+                (DATASET / "models_eval" / "models_info.json").read_text()
+            ).items()
+        }
         self.gt: dict[int, dict] = {}
         self.cam: dict[int, dict] = {}
         for scene in (1, 2):
@@ -43,12 +48,16 @@ class Reference:
             self.gt[scene] = json.loads((folder / "scene_gt.json").read_text())
             self.cam[scene] = json.loads((folder / "scene_camera.json").read_text())
         self.models = {o: dataset.model(o) for o in dataset.obj_ids}
-        self.syms = {o: poseboard.get_symmetry_transformations(self.info[o], 0.01) for o in dataset.obj_ids}
+        self.syms = {
+            o: poseboard.get_symmetry_transformations(self.info[o], 0.01) for o in dataset.obj_ids
+        }
         self.depth: dict[tuple[int, int], np.ndarray] = {}
 
     def gt_pose(self, scene: int, im: int, gt_id: int):
         g = self.gt[scene][str(im)][gt_id]
-        return np.array(g["cam_R_m2c"], float).reshape(3, 3), np.array(g["cam_t_m2c"], float).reshape(3, 1)
+        return np.array(g["cam_R_m2c"], float).reshape(3, 3), np.array(
+            g["cam_t_m2c"], float
+        ).reshape(3, 1)
 
     def K(self, scene: int, im: int) -> np.ndarray:
         return np.array(self.cam[scene][str(im)]["cam_K"], float).reshape(3, 3)
@@ -73,7 +82,9 @@ def sphere_projections_overlap(radius: float, t1: np.ndarray, t2: np.ndarray) ->
     return math.hypot(x1 / z1 - x2 / z2, y1 / z1 - y2 / z2) < radius * (1 / z1 + 1 / z2)
 
 
-def numpy_errors(ref: Reference, rows: dict, report: dict, key: tuple, gt_id: int) -> dict[str, object]:
+def numpy_errors(
+    ref: Reference, rows: dict, report: dict, key: tuple, gt_id: int
+) -> dict[str, object]:
     """Every error of one estimate against one GT instance with the public functions, keyed by
     the signature of the report's error column, applying the evaluation's shortcuts (VSD 1 and
     MSSD/ADD/ADI infinite when the bounding spheres cannot meet)."""
@@ -91,8 +102,18 @@ def numpy_errors(ref: Reference, rows: dict, report: dict, key: tuple, gt_id: in
             taus = spec["vsd_taus"]
             if sphere_projections_overlap(diameter / 2, t_e, t_g):
                 values = poseboard.vsd(
-                    R_e, t_e, R_g, t_g, ref.depth_of(scene, im), ref.K(scene, im), spec["vsd_delta"], taus,
-                    spec["vsd_normalized_by_diameter"], diameter, ref.models[obj], visib_mode=spec["visib_mode"],
+                    R_e,
+                    t_e,
+                    R_g,
+                    t_g,
+                    ref.depth_of(scene, im),
+                    ref.K(scene, im),
+                    spec["vsd_delta"],
+                    taus,
+                    spec["vsd_normalized_by_diameter"],
+                    diameter,
+                    ref.models[obj],
+                    visib_mode=spec["visib_mode"],
                 )
             else:
                 values = [1.0] * len(taus)
@@ -180,7 +201,9 @@ def test_symmetries_are_bop_toolkits_discretisation(ref):
     # Object 3: a continuous symmetry about z (315 steps) and a discrete flip.
     syms = ref.syms[3]
     assert len(syms) == 2 * 315
-    assert np.array_equal(syms[0]["R"], np.eye(3)) and np.array_equal(syms[0]["t"], np.zeros((3, 1)))
+    assert np.array_equal(syms[0]["R"], np.eye(3)) and np.array_equal(
+        syms[0]["t"], np.zeros((3, 1))
+    )
     for s in syms:
         assert s["R"].shape == (3, 3) and s["t"].shape == (3, 1)
         assert np.allclose(s["R"] @ s["R"].T, np.eye(3))
@@ -203,4 +226,16 @@ def test_bad_shapes_raise_value_error(ref):
         poseboard.mssd(np.eye(3), np.zeros(3), np.eye(3), np.zeros(3), pts, [])
     model = {"pts": pts, "faces": np.array([[0, 1, len(pts)]])}
     with pytest.raises(ValueError, match="faces"):
-        poseboard.vsd(np.eye(3), np.zeros(3), np.eye(3), np.zeros(3), np.zeros((4, 4)), np.eye(3), 15, [20], False, 100, model)
+        poseboard.vsd(
+            np.eye(3),
+            np.zeros(3),
+            np.eye(3),
+            np.zeros(3),
+            np.zeros((4, 4)),
+            np.eye(3),
+            15,
+            [20],
+            False,
+            100,
+            model,
+        )

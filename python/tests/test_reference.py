@@ -15,7 +15,15 @@ from conftest import DATASET, RESULT_NAMES, expected, result_file
 def test_eccv18_recalls_match_bop_toolkit(dataset, name, visib_mode):
     report = poseboard.evaluate(dataset, result_file(name), "eccv18", visib_mode=visib_mode)
     want = expected(name, f"ecc18_{visib_mode}vis.json")
-    for key in ["recall", "tp_count", "targets_count", "gt_count", "obj_recalls", "scene_recalls", "mean_obj_recall"]:
+    for key in [
+        "recall",
+        "tp_count",
+        "targets_count",
+        "gt_count",
+        "obj_recalls",
+        "scene_recalls",
+        "mean_obj_recall",
+    ]:
         assert report[key] == want[key], key
 
 

@@ -48,7 +48,9 @@ def test_check_results_counts_and_reports_coverage(dataset):
     assert alone["estimates"] == report["estimates_count"]
     with_dataset = poseboard.check_results(path, DATASET)
     assert with_dataset == poseboard.check_results(path, dataset)
-    assert with_dataset["targets"] == len(json.loads((DATASET / "test_targets_bop19.json").read_text()))
+    assert with_dataset["targets"] == len(
+        json.loads((DATASET / "test_targets_bop19.json").read_text())
+    )
     assert with_dataset["targets_without_estimate"] == report["targets_without_estimate"] > 0
     assert with_dataset["estimates_ignored"] == report["estimates_ignored"]
 
@@ -67,12 +69,17 @@ def bop_toolkit_rows(name: str) -> list[dict]:
     rows = []
     for line in result_file(name).read_text().splitlines()[1:]:
         e = line.split(",")
-        rows.append({
-            "scene_id": int(e[0]), "im_id": int(e[1]), "obj_id": int(e[2]), "score": float(e[3]),
-            "R": np.array(list(map(float, e[4].split())), np.float64).reshape((3, 3)),
-            "t": np.array(list(map(float, e[5].split())), np.float64).reshape((3, 1)),
-            "time": float(e[6]),
-        })
+        rows.append(
+            {
+                "scene_id": int(e[0]),
+                "im_id": int(e[1]),
+                "obj_id": int(e[2]),
+                "score": float(e[3]),
+                "R": np.array(list(map(float, e[4].split())), np.float64).reshape((3, 3)),
+                "t": np.array(list(map(float, e[5].split())), np.float64).reshape((3, 1)),
+                "time": float(e[6]),
+            }
+        )
     return rows
 
 
@@ -83,7 +90,9 @@ def test_rows_score_like_their_file(dataset, protocol):
     assert poseboard.evaluate(dataset, bop_toolkit_rows(name), protocol) == from_file
     # A generator, too, and rows without a time (bop_toolkit's save_bop_results writes -1).
     rows = bop_toolkit_rows(name)
-    no_time = poseboard.evaluate(dataset, ({k: v for k, v in r.items() if k != "time"} for r in rows), protocol)
+    no_time = poseboard.evaluate(
+        dataset, ({k: v for k, v in r.items() if k != "time"} for r in rows), protocol
+    )
     assert no_time["per_error_recall_per_threshold"] == from_file["per_error_recall_per_threshold"]
     assert "bop19_average_time_per_image" not in no_time
 
@@ -91,8 +100,22 @@ def test_rows_score_like_their_file(dataset, protocol):
 def test_a_structured_array_scores_like_its_file(dataset):
     name = "noisemedium_synthA-test"
     rows = bop_toolkit_rows(name)
-    dtype = [("scene_id", "i4"), ("im_id", "i4"), ("obj_id", "i4"), ("score", "f8"), ("R", "f8", (3, 3)), ("t", "f8", (3,)), ("time", "f8")]
-    array = np.array([(r["scene_id"], r["im_id"], r["obj_id"], r["score"], r["R"], r["t"].ravel(), r["time"]) for r in rows], dtype=dtype)
+    dtype = [
+        ("scene_id", "i4"),
+        ("im_id", "i4"),
+        ("obj_id", "i4"),
+        ("score", "f8"),
+        ("R", "f8", (3, 3)),
+        ("t", "f8", (3,)),
+        ("time", "f8"),
+    ]
+    array = np.array(
+        [
+            (r["scene_id"], r["im_id"], r["obj_id"], r["score"], r["R"], r["t"].ravel(), r["time"])
+            for r in rows
+        ],
+        dtype=dtype,
+    )
     assert poseboard.evaluate(dataset, array) == poseboard.evaluate(dataset, result_file(name))
 
 

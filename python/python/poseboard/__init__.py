@@ -162,9 +162,9 @@ def _rows_csv(results: Any) -> bytes:
                 i = next(i for i, row in enumerate(rows) if field not in row)
                 raise ValueError(f"row {i} has no {field!r}") from None
         time = [row["time"] if "time" in row else -1.0 for row in rows]
-    ids = np.stack(
-        [_ids(columns[f], f) for f in ("scene_id", "im_id", "obj_id")], axis=-1
-    ).reshape(n, 3)
+    ids = np.stack([_ids(columns[f], f) for f in ("scene_id", "im_id", "obj_id")], axis=-1).reshape(
+        n, 3
+    )
     return _native.results_csv(
         np.ascontiguousarray(ids).tobytes(),
         _floats(columns["score"], n, 1, "score").tobytes(),
@@ -417,7 +417,9 @@ def mssd(
     """Maximum Symmetry-Aware Surface Distance (BOP'19) in mm: the largest distance of a
     model point between the two poses, minimised over ``syms`` (dicts with ``R`` and ``t``,
     from :func:`get_symmetry_transformations` or bop_toolkit's)."""
-    return _native.mssd(_pose(R_est, t_est, "est"), _pose(R_gt, t_gt, "gt"), _points(pts), _syms(syms))
+    return _native.mssd(
+        _pose(R_est, t_est, "est"), _pose(R_gt, t_gt, "gt"), _points(pts), _syms(syms)
+    )
 
 
 def mspd(
@@ -432,16 +434,24 @@ def mspd(
     """Maximum Symmetry-Aware Projection Distance (BOP'19) in pixels: the largest distance of
     a projected model point between the two poses, minimised over ``syms``."""
     return _native.mspd(
-        _pose(R_est, t_est, "est"), _pose(R_gt, t_gt, "gt"), _mat3(K, "K"), _points(pts), _syms(syms)
+        _pose(R_est, t_est, "est"),
+        _pose(R_gt, t_gt, "gt"),
+        _mat3(K, "K"),
+        _points(pts),
+        _syms(syms),
     )
 
 
-def add(R_est: np.ndarray, t_est: np.ndarray, R_gt: np.ndarray, t_gt: np.ndarray, pts: np.ndarray) -> float:
+def add(
+    R_est: np.ndarray, t_est: np.ndarray, R_gt: np.ndarray, t_gt: np.ndarray, pts: np.ndarray
+) -> float:
     """Average Distance of model points (ADD, Hinterstoisser et al.) in mm."""
     return _native.add(_pose(R_est, t_est, "est"), _pose(R_gt, t_gt, "gt"), _points(pts))
 
 
-def adi(R_est: np.ndarray, t_est: np.ndarray, R_gt: np.ndarray, t_gt: np.ndarray, pts: np.ndarray) -> float:
+def adi(
+    R_est: np.ndarray, t_est: np.ndarray, R_gt: np.ndarray, t_gt: np.ndarray, pts: np.ndarray
+) -> float:
     """Average distance to the closest model point (ADI or ADD-S, for symmetric objects) in mm."""
     return _native.adi(_pose(R_est, t_est, "est"), _pose(R_gt, t_gt, "gt"), _points(pts))
 
@@ -464,12 +474,17 @@ def get_symmetry_transformations(
     first, continuous symmetries sampled so that the farthest point moves at most
     ``max_sym_disc_step`` of the diameter per step. ``model_info`` is the object's entry of
     ``models_info.json``."""
-    discrete = [np.asarray(m, dtype=np.float64).reshape(16).tolist() for m in model_info.get("symmetries_discrete", [])]
+    discrete = [
+        np.asarray(m, dtype=np.float64).reshape(16).tolist()
+        for m in model_info.get("symmetries_discrete", [])
+    ]
     continuous = [
         (_vec3(s["axis"], "axis"), _vec3(s["offset"], "offset"))
         for s in model_info.get("symmetries_continuous", [])
     ]
     return [
         {"R": np.array(R).reshape(3, 3), "t": np.array(t).reshape(3, 1)}
-        for R, t in _native.symmetry_transformations_of(discrete, continuous, float(max_sym_disc_step))
+        for R, t in _native.symmetry_transformations_of(
+            discrete, continuous, float(max_sym_disc_step)
+        )
     ]

@@ -39,22 +39,70 @@ def parser() -> argparse.ArgumentParser:
         prog="poseboard-eval",
         description="Evaluate a BOP'19 result file on a BOP dataset (poseboard eval).",
     )
-    p.add_argument("--dataset", required=True, help="a BOP dataset folder (models/ or models_eval/, test/, test_targets_bop19.json)")
+    p.add_argument(
+        "--dataset",
+        required=True,
+        help="a BOP dataset folder (models/ or models_eval/, test/, test_targets_bop19.json)",
+    )
     p.add_argument("--results", required=True, help="a result file in the BOP'19 CSV format")
     p.add_argument("--protocol", default="bop19", choices=["eccv18", "bop19"])
-    p.add_argument("--out", help="write the full report (every score, the parameters used) as JSON to this file")
-    p.add_argument("--errors-out", help="write every evaluated estimate's errors against each ground-truth instance as JSON")
+    p.add_argument(
+        "--out",
+        help="write the full report (every score, the parameters used) as JSON to this file",
+    )
+    p.add_argument(
+        "--errors-out",
+        help="write every evaluated estimate's errors against each ground-truth instance as JSON",
+    )
     p.add_argument("--threads", type=int, help="worker threads (default: every core)")
-    p.add_argument("--visib-mode", choices=["bop18", "bop19"], help="VSD visibility: bop18 (the paper: missing depth hides) or bop19 (missing depth shows)")
-    p.add_argument("--tau", type=_floats, action="append", help="VSD misalignment tolerance(s): mm, or fractions of the diameter when normalised")
-    p.add_argument("--tau-normalized", type=_bool, help="whether --tau is a fraction of the object diameter (bop19's default) or mm (eccv18's)")
-    p.add_argument("--theta", type=_floats, action="append", help="VSD threshold(s) of correctness theta")
+    p.add_argument(
+        "--visib-mode",
+        choices=["bop18", "bop19"],
+        help="VSD visibility: bop18 (the paper: missing depth hides) or bop19 (missing depth shows)",
+    )
+    p.add_argument(
+        "--tau",
+        type=_floats,
+        action="append",
+        help="VSD misalignment tolerance(s): mm, or fractions of the diameter when normalised",
+    )
+    p.add_argument(
+        "--tau-normalized",
+        type=_bool,
+        help="whether --tau is a fraction of the object diameter (bop19's default) or mm (eccv18's)",
+    )
+    p.add_argument(
+        "--theta", type=_floats, action="append", help="VSD threshold(s) of correctness theta"
+    )
     p.add_argument("--delta", type=float, help="VSD visibility tolerance delta in mm")
-    p.add_argument("--n-top", type=int, help="estimates considered per target: N, -1 = as many as instances, 0 = all")
-    p.add_argument("--visib-gt-min", type=float, help="minimum visible fraction of a ground-truth instance to be a target (-1: the inst_count most visible instances)")
-    p.add_argument("--max-sym-disc-step", type=float, help="discretisation of continuous symmetries (fraction of the diameter)")
-    p.add_argument("--extra-errors", type=_extra_errors, action="append", default=[], help="also compute these errors: add, adi, ad (ADI for objects with declared symmetries, ADD for the others), reported at --ad-threshold")
-    p.add_argument("--ad-threshold", type=float, default=0.1, help="threshold of correctness of the extra errors, as a fraction of the object diameter")
+    p.add_argument(
+        "--n-top",
+        type=int,
+        help="estimates considered per target: N, -1 = as many as instances, 0 = all",
+    )
+    p.add_argument(
+        "--visib-gt-min",
+        type=float,
+        help="minimum visible fraction of a ground-truth instance to be a target (-1: the inst_count most visible instances)",
+    )
+    p.add_argument(
+        "--max-sym-disc-step",
+        type=float,
+        help="discretisation of continuous symmetries (fraction of the diameter)",
+    )
+    p.add_argument(
+        "--extra-errors",
+        type=_extra_errors,
+        action="append",
+        default=[],
+        help="also compute these errors: add, adi, ad (ADI for objects with declared symmetries, ADD for the others), reported at --ad-threshold",
+    )
+    p.add_argument(
+        "--ad-threshold",
+        type=float,
+        default=0.1,
+        help="threshold of correctness of the extra errors, as a fraction of the object diameter",
+    )
     return p
 
 
@@ -85,6 +133,7 @@ def table(r: dict[str, Any]) -> str:
         if "average_time_per_target" in r:
             lines.append(f"average time per target: {r['average_time_per_target']:.3f} s")
     else:
+
         def f(key: str) -> str:
             return f"{r[key]:.4f}" if key in r else "-"
 
