@@ -9,8 +9,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::Duration;
 
-use evaluator::pipeline::Evaluation;
-use evaluator::{Dataset, Error, Progress, results};
+use evaluator::{Dataset, Error, Evaluation, Progress, results};
 use pyo3::exceptions::{
     PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
 };
