@@ -3,12 +3,16 @@
 //! are never stored: passwords as argon2id hashes, tokens and session secrets as SHA-256 (they
 //! are 256-bit random, so a fast hash is enough and argon2 per request would be too slow).
 
+use std::net::IpAddr;
+
 use argon2::{Argon2, PasswordHash, PasswordHasher, PasswordVerifier};
 use rand::RngCore;
 use sha2::{Digest, Sha256};
 
+use crate::clock::now_ms;
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
+use crate::store::accounts::User;
 use crate::store::{Store, StoreError};
 
 /// Personal tokens carry a prefix so that leaked ones are easy to recognise.
@@ -59,6 +63,50 @@ pub async fn verify_password(password: &str, stored: &str) -> AppResult<bool> {
     })
     .await
     .map_err(|e| AppError::Internal(e.to_string()))
+}
+
+/// Sign-in attempts allowed per account, and per address, within `LOGIN_WINDOW_MS`.
+const LOGIN_FAILURES_PER_ACCOUNT: usize = 5;
+const LOGIN_FAILURES_PER_ADDRESS: usize = 20;
+const LOGIN_WINDOW_MS: i64 = 15 * 60 * 1000;
+
+/// Signs in with a name and a password from `addr`: the user, or `None` for an unknown name or
+/// a wrong password (recorded against the account and the address). While either has failed
+/// too often recently, the answer is `TooMany` before any password is checked.
+pub async fn sign_in(
+    store: &Store,
+    name: &str,
+    password: &str,
+    addr: IpAddr,
+) -> AppResult<Option<User>> {
+    let name = name.trim();
+    let account_key = format!("user:{name}");
+    let keys = [
+        (account_key.clone(), LOGIN_FAILURES_PER_ACCOUNT),
+        (format!("addr:{addr}"), LOGIN_FAILURES_PER_ADDRESS),
+    ];
+    let since = now_ms() - LOGIN_WINDOW_MS;
+    for (key, limit) in &keys {
+        let failures = store.login_failures(key, since).await?;
+        if failures.len() >= *limit {
+            return Err(AppError::TooMany {
+                message: "too many failed sign-ins: wait a few minutes and try again".into(),
+                retry_at: failures[failures.len() - limit] + LOGIN_WINDOW_MS,
+            });
+        }
+    }
+    let verified = match store.user_for_login(name).await? {
+        Some((user, hash)) => verify_password(password, &hash).await?.then_some(user),
+        None => None,
+    };
+    match &verified {
+        Some(_) => store.clear_login_failures(&account_key).await?,
+        None => {
+            let keys: Vec<String> = keys.into_iter().map(|(k, _)| k).collect();
+            store.record_login_failure(&keys).await?;
+        }
+    }
+    Ok(verified)
 }
 
 /// Creates an account; a taken name is a conflict that says so.

@@ -199,5 +199,29 @@ fn administration(kind: Db) {
         ],
         "{kind:?}"
     );
+
+    // A retired dataset stays retired across a restart, until it is added again.
+    let retire = post_as(
+        &format!("{base}/api/v1/admin/datasets/synthA/retire"),
+        &root,
+        None,
+    );
+    assert!(retire.status().is_success());
+    drop(server);
+    let server = start(&data, &datasets, &db, &[]);
+    let base = server.base.clone();
+    let served = get_json(&format!("{base}/api/v1/datasets"));
+    assert!(!served.to_string().contains("synthA"), "{kind:?}: {served}");
+    let add = post_as(
+        &format!("{base}/api/v1/admin/datasets"),
+        &root,
+        Some(serde_json::json!({ "name": "synthA" })),
+    );
+    assert!(add.status().is_success());
+    assert!(
+        get_json(&format!("{base}/api/v1/datasets"))
+            .to_string()
+            .contains("synthA")
+    );
 }
 both_databases!(administration);

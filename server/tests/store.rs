@@ -20,9 +20,7 @@ use server::store::{Store, StoreError};
 
 /// A migrated store on a fresh database of `kind`, with its URL (for raw SQL).
 async fn store(kind: Db, db: &TestDb, dir: &Path) -> (Store, String) {
-    let url = db
-        .url()
-        .unwrap_or_else(|| server::store::sqlite_url(dir));
+    let url = db.url().unwrap_or_else(|| server::store::sqlite_url(dir));
     let _ = kind;
     let store = Store::connect(&url).await.expect("connects");
     store.migrate().await.expect("migrates");
@@ -67,7 +65,11 @@ fn dataset_row(name: &str) -> DatasetRow {
 
 async fn user(store: &Store, name: &str) -> i64 {
     store
-        .create_user(&UserName::parse(name).unwrap(), "$argon2id$not-a-real-hash", false)
+        .create_user(
+            &UserName::parse(name).unwrap(),
+            "$argon2id$not-a-real-hash",
+            false,
+        )
         .await
         .expect("user created")
 }
@@ -138,20 +140,35 @@ fn datasets_stay_retired(kind: Db) {
     let db = TestDb::new(kind, "store_datasets");
     run(async {
         let (store, _) = store(kind, &db, dir.path()).await;
-        let row = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let row = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
         assert!(!row.retired);
         assert_eq!(store.datasets().await.unwrap(), vec![row.clone()]);
         assert!(store.retire_dataset("synthA").await.unwrap());
         assert!(!store.retire_dataset("synthA").await.unwrap());
         // Registering again (a restart) keeps it retired.
-        let again = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let again = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
         assert_eq!(again.id, row.id);
         assert!(again.retired);
         assert!(store.datasets().await.unwrap().is_empty());
         assert!(store.dataset_by_name("synthA").await.unwrap().is_none());
-        assert!(store.dataset(row.id).await.unwrap().is_some_and(|d| d.retired));
+        assert!(
+            store
+                .dataset(row.id)
+                .await
+                .unwrap()
+                .is_some_and(|d| d.retired)
+        );
         assert!(store.revive_dataset("synthA").await.unwrap());
-        assert_eq!(store.dataset_by_name("synthA").await.unwrap().map(|d| d.id), Some(row.id));
+        assert_eq!(
+            store.dataset_by_name("synthA").await.unwrap().map(|d| d.id),
+            Some(row.id)
+        );
     });
 }
 both_databases!(datasets_stay_retired);
@@ -165,7 +182,10 @@ fn submissions_queue_and_scores(kind: Db) {
     ];
     run(async {
         let (store, _) = store(kind, &db, dir.path()).await;
-        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let ds = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
         let owner = user(&store, "alice").await;
         let f = fixture("CosyPose");
         let protocols = [ProtocolName::Bop19, ProtocolName::Eccv18];
@@ -220,18 +240,49 @@ fn submissions_queue_and_scores(kind: Db) {
             .iter()
             .map(|(&o, &v)| (i64::from(o), v))
             .collect();
-        assert_eq!(board[0].object_scores.clone().into_iter().collect::<Vec<_>>(), objects);
-        assert!(store.leaderboard(ProtocolName::Bop19, Some(ds.id + 1)).await.unwrap().is_empty());
+        assert_eq!(
+            board[0]
+                .object_scores
+                .clone()
+                .into_iter()
+                .collect::<Vec<_>>(),
+            objects
+        );
+        assert!(
+            store
+                .leaderboard(ProtocolName::Bop19, Some(ds.id + 1))
+                .await
+                .unwrap()
+                .is_empty()
+        );
 
         // Hidden: off the boards; re-run: queued again; delete: gone, file unused.
         assert!(store.set_hidden(id, true).await.unwrap());
-        assert!(store.leaderboard(ProtocolName::Eccv18, None).await.unwrap().is_empty());
-        assert!(store.recent_public_submissions(10).await.unwrap().is_empty());
+        assert!(
+            store
+                .leaderboard(ProtocolName::Eccv18, None)
+                .await
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            store
+                .recent_public_submissions(10)
+                .await
+                .unwrap()
+                .is_empty()
+        );
         assert!(store.rerun(id).await.unwrap());
         assert!(!store.rerun(id).await.unwrap());
-        assert_eq!(store.submission(id).await.unwrap().unwrap().status, Status::Queued);
+        assert_eq!(
+            store.submission(id).await.unwrap().unwrap().status,
+            Status::Queued
+        );
         let deleted = store.delete_submission(id).await.unwrap().expect("deleted");
-        assert_eq!((deleted.file_sha256.as_str(), deleted.file_unused), ("aaaa", true));
+        assert_eq!(
+            (deleted.file_sha256.as_str(), deleted.file_unused),
+            ("aaaa", true)
+        );
         assert!(store.delete_submission(id).await.unwrap().is_none());
         assert!(!store.file_in_use("aaaa").await.unwrap());
     });
@@ -243,7 +294,10 @@ fn fair_use_is_exact_under_concurrency(kind: Db) {
     let db = TestDb::new(kind, "store_fair_use");
     run(async {
         let (store, _) = store(kind, &db, dir.path()).await;
-        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let ds = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
         let owner = user(&store, "bob").await;
         // Twelve parallel uploads of different files for a method that does not exist yet,
         // against a limit of 5: exactly five are created, the others are refused, none fails.
@@ -306,10 +360,20 @@ fn accounts_and_audit(kind: Db) {
             .await;
         assert!(matches!(taken, Err(StoreError::Unique { .. })), "{taken:?}");
         let (u, hash) = store.user_for_login("dora").await.unwrap().expect("found");
-        assert_eq!((u.id, u.is_admin, hash.as_str()), (id, false, "$argon2id$not-a-real-hash"));
+        assert_eq!(
+            (u.id, u.is_admin, hash.as_str()),
+            (id, false, "$argon2id$not-a-real-hash")
+        );
 
-        store.create_session(id, "s-hash", "csrf", 60_000).await.unwrap();
-        let s = store.session("s-hash").await.unwrap().expect("live session");
+        store
+            .create_session(id, "s-hash", "csrf", 60_000)
+            .await
+            .unwrap();
+        let s = store
+            .session("s-hash")
+            .await
+            .unwrap()
+            .expect("live session");
         assert_eq!((s.user.id, s.csrf_token.as_str()), (id, "csrf"));
         store.create_session(id, "old", "c", -1).await.unwrap();
         assert!(store.session("old").await.unwrap().is_none(), "expired");
@@ -318,7 +382,10 @@ fn accounts_and_audit(kind: Db) {
 
         let label = TokenLabel::parse("ci").unwrap();
         let tid = store.create_token(id, &label, "t-hash").await.unwrap();
-        assert_eq!(store.user_for_token("t-hash").await.unwrap().map(|u| u.id), Some(id));
+        assert_eq!(
+            store.user_for_token("t-hash").await.unwrap().map(|u| u.id),
+            Some(id)
+        );
         assert!(store.tokens(id).await.unwrap()[0].last_used_at.is_some());
         assert!(store.revoke_token(id, tid).await.unwrap());
         assert!(!store.revoke_token(id, tid).await.unwrap());
@@ -332,11 +399,23 @@ fn accounts_and_audit(kind: Db) {
             .unwrap();
         assert_eq!(store.login_failures("user:dora", 0).await.unwrap().len(), 1);
         store.clear_login_failures("user:dora").await.unwrap();
-        assert!(store.login_failures("user:dora", 0).await.unwrap().is_empty());
+        assert!(
+            store
+                .login_failures("user:dora", 0)
+                .await
+                .unwrap()
+                .is_empty()
+        );
         assert_eq!(store.login_failures("addr:1", 0).await.unwrap().len(), 1);
 
-        store.audit(id, AdminAction::Hide, "submission 1").await.unwrap();
-        store.audit(id, AdminAction::AddDataset, "lmo").await.unwrap();
+        store
+            .audit(id, AdminAction::Hide, "submission 1")
+            .await
+            .unwrap();
+        store
+            .audit(id, AdminAction::AddDataset, "lmo")
+            .await
+            .unwrap();
         let log = store.audit_log(10).await.unwrap();
         let actions: Vec<AdminAction> = log.iter().map(|e| e.action).collect();
         assert_eq!(actions, [AdminAction::AddDataset, AdminAction::Hide]);
@@ -350,7 +429,10 @@ fn unknown_stored_values_are_errors(kind: Db) {
     let db = TestDb::new(kind, "store_corrupt");
     run(async {
         let (store, url) = store(kind, &db, dir.path()).await;
-        let ds = store.register_dataset(&dataset_row("synthA")).await.unwrap();
+        let ds = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
         let owner = user(&store, "eve").await;
         let f = fixture("M");
         let protocols = [ProtocolName::Bop19];
@@ -361,28 +443,55 @@ fn unknown_stored_values_are_errors(kind: Db) {
         else {
             panic!("created");
         };
-        raw(&url, &format!("UPDATE submissions SET status = 'paused' WHERE id = {id}")).await;
+        raw(
+            &url,
+            &format!("UPDATE submissions SET status = 'paused' WHERE id = {id}"),
+        )
+        .await;
         match store.submission(id).await {
             Err(StoreError::Corrupt { column, value }) => {
                 assert_eq!((column, value.as_str()), ("status", "paused"))
             }
             other => panic!("expected a corrupt status, got {other:?}"),
         }
-        raw(&url, &format!("UPDATE submissions SET status = 'queued', protocols = 'bop99' WHERE id = {id}")).await;
+        raw(
+            &url,
+            &format!(
+                "UPDATE submissions SET status = 'queued', protocols = 'bop99' WHERE id = {id}"
+            ),
+        )
+        .await;
         assert!(matches!(
             store.submission(id).await,
-            Err(StoreError::Corrupt { column: "protocols", .. })
+            Err(StoreError::Corrupt {
+                column: "protocols",
+                ..
+            })
         ));
-        raw(&url, &format!("UPDATE submissions SET protocols = 'bop19' WHERE id = {id}")).await;
-        raw(&url, &format!("UPDATE methods SET modality = 'thermal' WHERE owner_id = {owner}")).await;
+        raw(
+            &url,
+            &format!("UPDATE submissions SET protocols = 'bop19' WHERE id = {id}"),
+        )
+        .await;
+        raw(
+            &url,
+            &format!("UPDATE methods SET modality = 'thermal' WHERE owner_id = {owner}"),
+        )
+        .await;
         assert!(matches!(
             store.public_methods().await,
-            Err(StoreError::Corrupt { column: "modality", .. })
+            Err(StoreError::Corrupt {
+                column: "modality",
+                ..
+            })
         ));
         raw(&url, "INSERT INTO audit_log (actor_id, action, target, at) SELECT id, 'promote', 'x', 0 FROM users").await;
         assert!(matches!(
             store.audit_log(5).await,
-            Err(StoreError::Corrupt { column: "action", .. })
+            Err(StoreError::Corrupt {
+                column: "action",
+                ..
+            })
         ));
     });
 }

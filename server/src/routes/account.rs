@@ -15,7 +15,6 @@ use serde::Deserialize;
 use crate::accounts::{self, new_secret, sha256_hex};
 use crate::app::AppState;
 use crate::auth::{self, SESSION_COOKIE, SESSION_TTL_MS, Viewer};
-use crate::clock::now_ms;
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
 use crate::routes::pages::filters;
@@ -75,27 +74,6 @@ struct Credentials {
     next: Option<String>,
 }
 
-/// Sign-in attempts allowed per account, and per address, within `LOGIN_WINDOW_MS`.
-const LOGIN_FAILURES_PER_ACCOUNT: usize = 5;
-const LOGIN_FAILURES_PER_ADDRESS: usize = 20;
-const LOGIN_WINDOW_MS: i64 = 15 * 60 * 1000;
-
-/// Refuses a sign-in while its account or its address has failed too often recently.
-async fn check_login_rate(app: &AppState, keys: &[(String, usize)]) -> AppResult<()> {
-    let since = now_ms() - LOGIN_WINDOW_MS;
-    for (key, limit) in keys {
-        let failures = app.store.login_failures(key, since).await?;
-        if failures.len() >= *limit {
-            let retry_at = failures[failures.len() - limit] + LOGIN_WINDOW_MS;
-            return Err(AppError::TooMany {
-                message: "too many failed sign-ins: wait a few minutes and try again".into(),
-                retry_at,
-            });
-        }
-    }
-    Ok(())
-}
-
 async fn login(
     State(app): State<AppState>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
@@ -107,23 +85,7 @@ async fn login(
         return Err(AppError::Forbidden("cross-site sign-in refused".into()));
     }
     let next = safe_next(c.next.as_deref());
-    let account_key = format!("user:{}", c.name.trim());
-    let keys = [
-        (account_key.clone(), LOGIN_FAILURES_PER_ACCOUNT),
-        (format!("addr:{}", peer.ip()), LOGIN_FAILURES_PER_ADDRESS),
-    ];
-    check_login_rate(&app, &keys).await?;
-    let found = app.store.user_for_login(c.name.trim()).await?;
-    // Verification runs on the blocking pool: argon2 is deliberately slow.
-    let verified = match found {
-        Some((user, hash)) => accounts::verify_password(&c.password, &hash)
-            .await?
-            .then_some(user),
-        None => None,
-    };
-    let Some(user) = verified else {
-        let keys: Vec<String> = keys.into_iter().map(|(k, _)| k).collect();
-        app.store.record_login_failure(&keys).await?;
+    let Some(user) = accounts::sign_in(&app.store, &c.name, &c.password, peer.ip()).await? else {
         let page = LoginPage {
             name: c.name,
             next,
@@ -132,7 +94,6 @@ async fn login(
         };
         return Ok((StatusCode::UNAUTHORIZED, page).into_response());
     };
-    app.store.clear_login_failures(&account_key).await?;
     start_session(&app, user.id, &headers, jar, &next).await
 }
 
