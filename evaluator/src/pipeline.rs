@@ -10,11 +10,11 @@ use rayon::prelude::*;
 use crate::dataset::{Dataset, Image};
 use crate::error::{Error, Result};
 use crate::matching::{EstimateErrors, valid_gts};
-use crate::math::{Pose, Pt3};
+use crate::math::Pose;
 use crate::pose_error::vsd::{GtView, TestImage, vsd};
 use crate::pose_error::{self, sphere_projections_overlap, spheres_overlap};
 use crate::protocol::{ErrorKind, NTop, Protocol};
-use crate::render::{DepthWindow, Renderer};
+use crate::render::{DepthWindow, Model, Renderer};
 use crate::report::{self, Report};
 use crate::results::Results;
 use crate::score::{ScoredImage, Scores, localization_scores};
@@ -273,7 +273,8 @@ fn select_estimates(dataset: &Dataset, results: &Results, n_top: NTop) -> Select
 
 /// What every error needs of an object, computed once per evaluation.
 struct ObjectData {
-    bbox_corners: HashMap<u32, [Pt3; 8]>,
+    /// Meshes prepared for rendering (closedness proven once), for VSD.
+    models: HashMap<u32, Model>,
     symmetries: HashMap<u32, Vec<Pose>>,
 }
 
@@ -284,11 +285,15 @@ impl ObjectData {
             .iter()
             .any(|e| matches!(e.kind, ErrorKind::Mssd | ErrorKind::Mspd));
         ObjectData {
-            bbox_corners: dataset
-                .objects
-                .iter()
-                .map(|(&id, o)| (id, o.mesh.bbox_corners()))
-                .collect(),
+            models: if protocol.vsd().is_some() {
+                dataset
+                    .objects
+                    .iter()
+                    .map(|(&id, o)| (id, Model::new(&o.mesh)))
+                    .collect()
+            } else {
+                HashMap::new()
+            },
             symmetries: if needs_syms {
                 dataset
                     .objects
@@ -447,9 +452,8 @@ impl Context<'_> {
         image: &Image,
         test: &TestImage,
     ) -> DepthWindow {
-        renderer.render(
-            &self.dataset.objects[&obj_id].mesh,
-            &self.objects.bbox_corners[&obj_id],
+        renderer.render_model(
+            &self.objects.models[&obj_id],
             pose,
             &image.camera,
             test.rays.width,
