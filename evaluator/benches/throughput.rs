@@ -52,7 +52,7 @@ fn main() {
         for gt in image.gt.iter().filter(|g| g.obj_id == est.obj_id) {
             if sphere_projections_overlap(diameter / 2.0, &est.pose.t, &gt.pose.t) {
                 let depth = dataset.load_depth(est.scene_id, est.im_id).expect("depth");
-                tests.push(TestImage::new(&depth, &image.camera));
+                tests.push(TestImage::new(depth, &image.camera));
                 pairs.push((est, gt, image));
             }
         }

@@ -529,11 +529,14 @@ fn read_depth_png(path: &Path, depth_scale: f32) -> Result<DepthImage> {
     reader
         .next_frame(&mut buf)
         .map_err(|e| png_error(path, e))?;
-    // Samples are big-endian and rows unpadded at 8 and 16 bits.
+    // Samples are big-endian and rows unpadded at 8 and 16 bits. A plain indexed loop into a
+    // preallocated buffer vectorises; an iterator over chunks collected did not.
     let data: Vec<f32> = if sixteen {
-        buf.chunks_exact(2)
-            .map(|b| f32::from(u16::from_be_bytes([b[0], b[1]])) * depth_scale)
-            .collect()
+        let mut data = vec![0f32; buf.len() / 2];
+        for (i, d) in data.iter_mut().enumerate() {
+            *d = f32::from(u16::from_be_bytes([buf[2 * i], buf[2 * i + 1]])) * depth_scale;
+        }
+        data
     } else {
         buf.iter().map(|&v| f32::from(v) * depth_scale).collect()
     };

@@ -333,6 +333,74 @@ pub fn clip_planes(corners: &[Pt3; 8], pose: &Pose) -> (f64, f64) {
         })
 }
 
+/// An inclusive rectangle of image pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelBox {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl PixelBox {
+    pub fn overlaps(&self, other: &PixelBox) -> bool {
+        self.x0 <= other.x1 && other.x0 <= self.x1 && self.y0 <= other.y1 && other.y0 <= self.y1
+    }
+
+    /// The pixels of a non-empty window.
+    pub fn of_window(w: &DepthWindow) -> Option<PixelBox> {
+        (!w.is_empty()).then(|| PixelBox {
+            x0: w.x0,
+            y0: w.y0,
+            x1: w.x0 + w.width - 1,
+            y1: w.y0 + w.height - 1,
+        })
+    }
+}
+
+/// Margin, in pixels, around the projected bounding box in [`screen_box`]: far above the
+/// float32 vertex path's error, which is a small fraction of a pixel.
+const SCREEN_BOX_MARGIN: f64 = 2.0;
+
+/// A rectangle holding every pixel [`Renderer::render_model`] can cover for `model` at `pose`,
+/// found without rendering: the mesh lies in its bounding box, which lies in front of the
+/// camera whenever anything is drawn, so its projection lies within the projected corners.
+/// `None` when the render is certainly empty. Two renders whose boxes do not overlap share no
+/// pixel, and their VSD is exactly 1.
+pub fn screen_box(
+    model: &Model,
+    pose: &Pose,
+    k: &Intrinsics,
+    width: u32,
+    height: u32,
+) -> Option<PixelBox> {
+    let (near, far) = clip_planes(&model.corners, pose);
+    if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) {
+        return None;
+    }
+    let (mut u0, mut u1, mut v0, mut v1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for c in &model.corners {
+        let p = pose.transform(c);
+        let (u, v) = (k.fx() * p.x / p.z + k.cx(), k.fy() * p.y / p.z + k.cy());
+        (u0, u1, v0, v1) = (u0.min(u), u1.max(u), v0.min(v), v1.max(v));
+    }
+    // Pixel i is sampled at i + 0.5.
+    let first = |lo: f64| (lo - SCREEN_BOX_MARGIN - 0.5).ceil().max(0.0);
+    let last = |hi: f64, size: u32| {
+        (hi + SCREEN_BOX_MARGIN - 0.5)
+            .floor()
+            .min(f64::from(size) - 1.0)
+    };
+    let (x0, x1) = (first(u0), last(u1, width));
+    let (y0, y1) = (first(v0), last(v1, height));
+    (x0 <= x1 && y0 <= y1).then_some(PixelBox {
+        x0: x0 as u32,
+        y0: y0 as u32,
+        x1: x1 as u32,
+        y1: y1 as u32,
+    })
+}
+
 /// `ceil(a / FIXED_ONE)` for fixed-point `a`.
 #[inline(always)]
 fn ceil_px(a: i64) -> i64 {
