@@ -1,55 +1,55 @@
-//! CPU depth rendering of a mesh at a pose that reproduces, pixel for pixel and mostly to the
-//! last bit of depth, what bop_toolkit's vispy renderer reads back from OpenGL on a machine
-//! without a GPU, where Mesa's llvmpipe rasterises. VSD counts pixels and compares depths with
-//! thresholds, so every step that can move a pixel across an edge or a depth across a threshold
-//! follows the reference's arithmetic, in the reference's precision:
+//! CPU depth rendering of a mesh at a pose that reproduces, pixel for pixel and to the last bit
+//! of depth, what bop_toolkit's vispy renderer reads back from OpenGL on a machine without a
+//! GPU, where Mesa's llvmpipe rasterises. VSD counts pixels and compares depths with thresholds,
+//! so every step that can move a pixel across an edge or a depth across a threshold follows the
+//! reference's arithmetic in the reference's precision (read from renderer_vispy.py, vispy's
+//! gloo and Mesa's llvmpipe; `tests/vsd_agreement.rs` measures the result):
 //!
-//! 1. **Vertex path in float32.** The toolkit puts R and t into a float32 view matrix (flipping
-//!    y and z to OpenGL's camera), builds the model-view-projection matrix in float64 from it
-//!    and from K and the near/far planes, and uploads it as float32; the vertex shader computes
-//!    `clip = M·(x, y, z, 1)` in float32, column by column. The viewport transform multiplies
-//!    by `1/w` (a float32 reciprocal, not a division of each coordinate) and maps to window
-//!    coordinates with y pointing up, as OpenGL renders into a framebuffer object.
-//! 2. **8 sub-pixel bits.** GL rasterisers, llvmpipe included, snap window coordinates to a
-//!    fixed-point grid before edge set-up: llvmpipe rounds `(x - 0.5) · 256` to the nearest
-//!    integer (ties to even), so pixel centres fall on integer multiples of 256. Every inside
-//!    test is then exact integer arithmetic on 1/256-pixel coordinates, and a triangle whose
-//!    snapped area is 0 draws nothing. Without the snap, a pixel centre within 1/512 pixel of
-//!    an edge is decided differently from the reference about one estimate in eight.
-//! 3. **Tie rule.** With snapped coordinates, pixel centres lying exactly on an edge are common,
-//!    so the rule for them matters. llvmpipe's (framebuffer-object orientation, y up) includes
-//!    a sample on an edge when the edge is a left edge of the triangle, or a horizontal edge
-//!    with the triangle above it in window coordinates; after the toolkit flips the read-back
-//!    image, that is a *left or bottom* edge in image coordinates (y down). Two triangles that
-//!    share an edge therefore never both cover, and never both miss, a sample on it.
-//! 4. **Depth as the 24-bit buffer holds it.** Window depth `z_w = z_ndc/2 + 1/2` is
-//!    interpolated linearly in screen space from a float32 plane equation set up as llvmpipe
-//!    sets it up (from the unsnapped float32 vertex positions, origin at the pixel-centre
-//!    offset), evaluated at the pixel centre, clamped to [0, 1] and rounded to a 24-bit
-//!    integer; the nearest (smallest) wins, ties keep the first triangle drawn (`GL_LESS`).
-//!    The toolkit reads the buffer back as float32 (`z24 / (2^24 - 1)`) and linearises it in
-//!    float32 as `mult / (z + addi)` (renderer_vispy `_draw_depth`), with
+//! 1. **Vertex path in float32.** The toolkit puts R and t into a float32 view matrix (y and z
+//!    negated for OpenGL's camera), builds the model-view-projection matrix in float64 from it,
+//!    K and the near/far planes, and uploads it as float32; the vertex shader computes
+//!    `clip = M·(x, y, z, 1)` in float32, column by column. The viewport transform multiplies by
+//!    `1/w` (a float32 reciprocal) and maps to window coordinates with y pointing up, as OpenGL
+//!    renders into a framebuffer object; the toolkit flips the image when reading it back.
+//! 2. **8 sub-pixel bits.** GL rasterisers snap window coordinates to a fixed-point grid before
+//!    edge set-up: llvmpipe rounds `(x - 0.5) · 256` to the nearest integer (ties to even), so
+//!    pixel centres fall on multiples of 256 and every inside test is exact integer arithmetic;
+//!    a triangle whose snapped area is 0 draws nothing. Without the snap, pixel centres within
+//!    1/512 pixel of an edge were decided differently about one VSD value in eight.
+//! 3. **Tie rule.** With snapped coordinates, pixel centres exactly on an edge are common.
+//!    llvmpipe's rule for framebuffer objects counts such a sample as inside when the edge is a
+//!    left edge of the triangle, or a horizontal edge with the triangle above it in window
+//!    coordinates: after the toolkit's flip, a *left or bottom* edge in image coordinates. It is
+//!    a rule in which two triangles sharing an edge never both take, and never both miss, a
+//!    sample on it. On the reference data any such watertight rule (top-left, inclusive) gives
+//!    the same values; excluding every edge sample loses 261 of 3850.
+//! 4. **A 16-bit depth buffer.** vispy creates the toolkit's depth render buffer as
+//!    `GL_DEPTH_COMPONENT16`. Window depth `z_w = z_ndc/2 + 1/2` is interpolated linearly in
+//!    screen space from a float32 plane set up as llvmpipe sets it up (from the unsnapped float32
+//!    vertex positions, origin at the pixel-centre offset), evaluated at the pixel centre,
+//!    clamped to [0, 1] and converted as llvmpipe converts float to 16-bit unorm
+//!    (`round(z · (1 - 2^-16) · 2^16)`, ties to even); the smallest wins, ties keep the first
+//!    triangle drawn (`GL_LESS`). The toolkit reads it back as float32 (`z16 · (1/65535)`) and
+//!    linearises it in float32 as `mult / (z + addi)` (renderer_vispy `_draw_depth`), with
 //!    `mult = n f / (n - f)` and `addi = f / (n - f)` computed in float64 and rounded to float32
-//!    by NumPy 1.x's scalar casting. A buffer value of exactly 1 is background.
+//!    by NumPy 1.x's scalar casting. A depth step is then about a thousandth of a millimetre,
+//!    which decides pixels whose discrepancy lies that close to a tau.
 //! 5. **Clipping planes.** Near and far are the extreme camera-space z of the model's bounding
-//!    box corners under the float32 pose (the toolkit multiplies its float32 view matrix row by
-//!    the float64 corners); a box reaching to or behind the camera renders nothing.
+//!    box corners under the float32 pose; a box reaching to or behind the camera renders
+//!    nothing.
 //!
-//! What is not reproduced: OpenGL's geometric clipping of triangles that cross the near or far
-//! plane (vertices lie inside the box, so only float32 rounding can put one outside) or a
-//! vertex beyond the guard band (a pose a few millimetres from the camera); the toolkit clips
-//! such triangles into smaller ones, which moves their edges by rounding amounts. Triangles
-//! with a vertex further than 2^21 pixels off screen are dropped.
+//! Not reproduced: OpenGL's geometric clipping of triangles crossing the near or far plane
+//! (vertices lie inside the box, so only float32 rounding can put one outside) or the guard band
+//! (a pose millimetres from the camera); the toolkit draws such triangles clipped, which moves
+//! their edges by rounding amounts. Triangles with a vertex further than 2^21 pixels off screen
+//! are dropped.
 //!
 //! Speed comes from work that cannot change a pixel: only the screen box of the object is
 //! rasterised, into a [`DepthWindow`]; a triangle whose fixed-point bounding box holds no pixel
 //! centre (most faces of a fine scan) is rejected before any set-up; edge functions are stepped
-//! incrementally in 64-bit integers; and for meshes proven closed and consistently oriented
-//! when the [`Model`] is built, faces pointing away from the camera are skipped (on a closed
-//! surface every sample a back face covers is first covered by a front face that is nearer;
-//! scans with holes are not closed and keep every face).
-
-use std::collections::HashMap;
+//! incrementally in 64-bit integers; [`screen_box`] bounds a render without drawing it. Faces
+//! are not culled even on closed meshes: with 16-bit depth a back face at a silhouette can be a
+//! depth step nearer than the front face and win the pixel, as it does in the toolkit.
 
 use crate::math::{Intrinsics, Pose, Pt3};
 use crate::mesh::Mesh;
@@ -92,32 +92,21 @@ impl DepthWindow {
     }
 }
 
-/// A mesh prepared for rendering: float32 vertices (what the toolkit uploads), its bounding-box
-/// corners (for the clipping planes), and which faces may be culled.
+/// A mesh prepared for rendering once per evaluation: float32 vertices (what the toolkit
+/// uploads) and its bounding-box corners (for the clipping planes).
 #[derive(Clone, Debug)]
 pub struct Model {
     vertices: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
     corners: [Pt3; 8],
-    /// For a closed, consistently oriented mesh, the sign of llvmpipe's fixed-point area that
-    /// marks a face turned away from the camera; `None` when faces must all be drawn.
-    back_face_sign: Option<i64>,
 }
 
 impl Model {
-    /// Prepares `mesh`, proving whether it is closed (so that back faces may be culled).
     pub fn new(mesh: &Mesh) -> Self {
-        let mut model = Self::drawing_every_face(mesh, mesh.bbox_corners());
-        model.back_face_sign = closed_orientation(mesh).map(|outward| {
-            // An outward face seen from behind projects, in window coordinates with y up, to a
-            // triangle of positive llvmpipe area (see `Renderer::rasterise`).
-            if outward { 1 } else { -1 }
-        });
-        model
+        Self::with_corners(mesh, mesh.bbox_corners())
     }
 
-    /// Prepares `mesh` without the closedness check: every face is rasterised.
-    fn drawing_every_face(mesh: &Mesh, corners: [Pt3; 8]) -> Self {
+    fn with_corners(mesh: &Mesh, corners: [Pt3; 8]) -> Self {
         Model {
             vertices: mesh
                 .vertices
@@ -126,63 +115,7 @@ impl Model {
                 .collect(),
             triangles: mesh.triangles.clone(),
             corners,
-            back_face_sign: None,
         }
-    }
-
-    /// Whether faces turned away from the camera are skipped.
-    pub fn culls_back_faces(&self) -> bool {
-        self.back_face_sign.is_some()
-    }
-
-    /// The bounding-box corners of the mesh (see [`Mesh::bbox_corners`]).
-    pub fn bbox_corners(&self) -> &[Pt3; 8] {
-        &self.corners
-    }
-}
-
-/// `Some(true)` when every edge of `mesh` is shared by exactly two faces that traverse it in
-/// opposite directions and the enclosed signed volume is positive (faces wind counter-clockwise
-/// seen from outside), `Some(false)` when closed but wound the other way, `None` otherwise
-/// (open, non-manifold, or of zero volume).
-fn closed_orientation(mesh: &Mesh) -> Option<bool> {
-    if mesh.triangles.is_empty() {
-        return None;
-    }
-    // Each directed edge must occur once, and its reverse once.
-    let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3);
-    for t in &mesh.triangles {
-        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
-            return None;
-        }
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            let n = directed.entry((a, b)).or_insert(0);
-            *n += 1;
-            if *n > 1 {
-                return None;
-            }
-        }
-    }
-    if directed
-        .keys()
-        .any(|&(a, b)| !directed.contains_key(&(b, a)))
-    {
-        return None;
-    }
-    let volume: f64 = mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| mesh.vertices[i as usize].coords);
-            a.dot(&b.cross(&c))
-        })
-        .sum();
-    if volume > 0.0 {
-        Some(true)
-    } else if volume < 0.0 {
-        Some(false)
-    } else {
-        None
     }
 }
 
@@ -311,10 +244,10 @@ impl Projection {
         }
     }
 
-    /// The depth read back from a 24-bit buffer value, linearised as the toolkit does.
+    /// The depth read back from a 16-bit buffer value, linearised as the toolkit does.
     #[inline]
-    fn linear_depth(&self, z24: u32) -> f32 {
-        let z = z24 as f32 * (1.0f32 / DEPTH_MAX as f32);
+    fn linear_depth(&self, z16: u32) -> f32 {
+        let z = z16 as f32 * (1.0f32 / DEPTH_MAX as f32);
         self.mult / (z + self.addi)
     }
 }
@@ -419,9 +352,8 @@ impl Renderer {
     }
 
     /// Renders `mesh` at `pose` seen by a camera with intrinsics `k` into an image of
-    /// `width` x `height` pixels, returning only the covered window. Every face is drawn; to
-    /// render one mesh many times, prepare it once as a [`Model`] and use
-    /// [`Renderer::render_model`].
+    /// `width` x `height` pixels, returning only the covered window. To render one mesh many
+    /// times, prepare it once as a [`Model`] and use [`Renderer::render_model`].
     pub fn render(
         &mut self,
         mesh: &Mesh,
@@ -431,7 +363,7 @@ impl Renderer {
         width: u32,
         height: u32,
     ) -> DepthWindow {
-        let model = Model::drawing_every_face(mesh, *bbox_corners);
+        let model = Model::with_corners(mesh, *bbox_corners);
         self.render_model(&model, pose, k, width, height)
     }
 
@@ -486,7 +418,7 @@ impl Renderer {
 
         for tri in &model.triangles {
             let [a, b, c] = tri.map(|i| self.verts[i as usize]);
-            rasterise(&mut self.zbuf, &win, model.back_face_sign, a, b, c);
+            rasterise(&mut self.zbuf, &win, a, b, c);
         }
 
         DepthWindow {
@@ -522,23 +454,16 @@ struct Window {
     image_height: i64,
 }
 
-/// Rasterises one triangle into the 24-bit depth buffer `zbuf` over `win`, as llvmpipe does.
+/// Rasterises one triangle into the 16-bit depth buffer `zbuf` over `win`, as llvmpipe does.
 #[inline]
-fn rasterise(
-    zbuf: &mut [u32],
-    win: &Window,
-    back_face_sign: Option<i64>,
-    mut a: WinVertex,
-    mut b: WinVertex,
-    c: WinVertex,
-) {
+fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex, c: WinVertex) {
     if !(a.usable && b.usable && c.usable) {
         return;
     }
     // Twice the signed area in fixed point; llvmpipe draws positive triangles and swaps the
     // first two vertices of negative ones.
     let area = (a.fx - b.fx) * (c.fy - a.fy) - (c.fx - a.fx) * (a.fy - b.fy);
-    if area == 0 || back_face_sign == Some(area.signum()) {
+    if area == 0 {
         return;
     }
     if area < 0 {
@@ -592,10 +517,10 @@ fn rasterise(
                 // Clamped to the depth range; NaN (a float32 set-up of zero area) draws nothing.
                 if z.is_finite() {
                     let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0);
-                    let z24 = round_even(f64::from(v) * 65536.0) as u32;
+                    let z16 = round_even(f64::from(v) * 65536.0) as u32;
                     let slot = &mut zbuf[row + (x - win.x0) as usize];
-                    if z24 < *slot {
-                        *slot = z24;
+                    if z16 < *slot {
+                        *slot = z16;
                     }
                 }
             }
@@ -646,6 +571,95 @@ mod tests {
         assert_eq!(d.count_nonzero(), 52 * 52);
         assert!((d.at(320, 240) as f64 - 950.0).abs() < 1e-3);
         assert_eq!(d.at(293, 240), 0.0);
+    }
+
+    /// A vertex at fixed-point window position (x, y), window depth 0.5.
+    fn fixed(x: i64, y: i64) -> WinVertex {
+        WinVertex {
+            x: x as f32 / 256.0 + 0.5,
+            y: y as f32 / 256.0 + 0.5,
+            z: 0.5,
+            fx: x,
+            fy: y,
+            usable: true,
+        }
+    }
+
+    /// Rasterises one triangle over a 4x4 window, returning the covered window pixels (x, y up).
+    fn coverage(a: WinVertex, b: WinVertex, c: WinVertex) -> Vec<(i64, i64)> {
+        let win = Window {
+            x0: 0,
+            x1: 3,
+            y0: 0,
+            y1: 3,
+            top: 0,
+            width: 4,
+            image_height: 4,
+        };
+        let mut zbuf = vec![DEPTH_MAX; 16];
+        rasterise(&mut zbuf, &win, a, b, c);
+        let mut out = Vec::new();
+        for y in 0..4 {
+            for x in 0..4 {
+                if zbuf[((3 - y) * 4 + x) as usize] != DEPTH_MAX {
+                    out.push((x, y));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn samples_on_left_and_lower_edges_are_inside_and_on_right_and_upper_edges_outside() {
+        // A right triangle with its legs through the centres of column 1 and row 1 (window
+        // coordinates, y up) and its hypotenuse between samples: the left and lower legs keep
+        // their samples, whichever way the vertices are listed.
+        let (a, b, c) = (
+            fixed(256, 256),
+            fixed(256 * 3 + 128, 256),
+            fixed(256, 256 * 3 + 128),
+        );
+        let expected = vec![(1, 1), (2, 1), (3, 1), (1, 2), (2, 2), (1, 3)];
+        assert_eq!(coverage(a, b, c), expected);
+        assert_eq!(coverage(a, c, b), expected);
+        // Mirrored: with its legs on the right (column 2) and on top (row 2), the triangle
+        // loses their samples and keeps only (1, 1).
+        let (a, b, c) = (fixed(512, 512), fixed(-128, 512), fixed(512, -128));
+        assert_eq!(coverage(a, b, c), vec![(1, 1)]);
+    }
+
+    #[test]
+    fn two_triangles_sharing_an_edge_through_samples_cover_each_sample_once() {
+        // A square from sample (0, 0) to sample (3, 3) split along its diagonal, which passes
+        // through samples (1, 1) and (2, 2): its left and lower sides are in, its right and
+        // upper sides out, and every sample within is covered by exactly one half.
+        let (p, q, r, s) = (fixed(0, 0), fixed(768, 0), fixed(768, 768), fixed(0, 768));
+        let mut both = coverage(p, q, r);
+        both.extend(coverage(p, r, s));
+        both.sort();
+        let square: Vec<_> = (0..3).flat_map(|x| (0..3).map(move |y| (x, y))).collect();
+        assert_eq!(both, square);
+    }
+
+    #[test]
+    fn window_coordinates_snap_to_a_256th_of_a_pixel_ties_to_even() {
+        assert_eq!(round_even(2.5), 2.0);
+        assert_eq!(round_even(3.5), 4.0);
+        assert_eq!(round_even(-2.5), -2.0);
+        assert_eq!(round_even(1.499_999), 1.0);
+        // A vertex 1/1024 pixel right of a pixel centre snaps onto it.
+        let k = camera();
+        let proj = Projection::new(
+            &Pose::new(Mat3::identity(), Vec3::new(0.0, 0.0, 1000.0)),
+            &crate::mesh::test_cube(50.0).bbox_corners(),
+            &k,
+            640,
+            480,
+        )
+        .expect("in front of the camera");
+        let x = (300.5 + 1.0 / 1024.0 - k.cx()) / k.fx() * 1000.0;
+        let v = proj.vertex(&[x as f32, 0.0, 0.0], 320.0, 240.0);
+        assert_eq!(v.fx, 300 * 256);
     }
 
     #[test]
