@@ -80,9 +80,9 @@ def replicate_results(src: Path, dst: Path, mapping: dict) -> int:
     return n
 
 
-def evaluate(dataset: Path, results: Path, protocol: str, threads, out: Path):
+def evaluate(binary: Path, dataset: Path, results: Path, protocol: str, threads, out: Path):
     """Runs poseboard eval; returns (report, seconds, peak resident MB)."""
-    cmd = [str(BINARY), "eval", "--dataset", str(dataset), "--results", str(results),
+    cmd = [str(binary), "eval", "--dataset", str(dataset), "--results", str(results),
            "--protocol", protocol, "--out", str(out)]
     if threads:
         cmd += ["--threads", str(threads)]
@@ -108,9 +108,11 @@ def main():
     ap.add_argument("--copies", type=int, default=611)
     ap.add_argument("--results", default="noisemedium")
     ap.add_argument("--threads", type=int, default=None, help="default: every core")
+    ap.add_argument("--binary", type=Path, default=BINARY,
+                    help="poseboard to time (e.g. an older build, for a ratio)")
     args = ap.parse_args()
-    if not BINARY.exists():
-        sys.exit(f"{BINARY} is missing: cargo build --release -p server")
+    if not args.binary.exists():
+        sys.exit(f"{args.binary} is missing: cargo build --release -p server")
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -121,9 +123,9 @@ def main():
         print(f"paper-sized set: {len(mapping)} scenes, {targets} targets, {rows} estimates "
               f"({args.copies} copies of the reference), threads: {args.threads or os.cpu_count()}")
         for protocol in ["eccv18", "bop19"]:
-            small, _, _ = evaluate(FIXTURE / "dataset", FIXTURE / "results" / name, protocol,
+            small, _, _ = evaluate(args.binary, FIXTURE / "dataset", FIXTURE / "results" / name, protocol,
                                    args.threads, tmp / f"small_{protocol}.json")
-            big, seconds, mb = evaluate(tmp / "big" / "synthA", tmp / "big" / name, protocol,
+            big, seconds, mb = evaluate(args.binary, tmp / "big" / "synthA", tmp / "big" / name, protocol,
                                         args.threads, tmp / f"big_{protocol}.json")
             differing = [k for k in COMPARED if small.get(k) != big.get(k)]
             if differing:
