@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use evaluator::pose_error::sphere_projections_overlap;
 use evaluator::pose_error::vsd::{GtView, TestImage, vsd};
 use evaluator::protocol::{ErrorKind, Protocol};
-use evaluator::render::Renderer;
+use evaluator::render::{Model, Renderer};
 use evaluator::{Dataset, NoProgress, evaluate, results};
 
 fn fixtures() -> PathBuf {
@@ -52,22 +52,27 @@ fn main() {
         for gt in image.gt.iter().filter(|g| g.obj_id == est.obj_id) {
             if sphere_projections_overlap(diameter / 2.0, &est.pose.t, &gt.pose.t) {
                 let depth = dataset.load_depth(est.scene_id, est.im_id).expect("depth");
-                tests.push(TestImage::new(&depth, &image.camera));
+                tests.push(TestImage::new(depth, &image.camera));
                 pairs.push((est, gt, image));
             }
         }
     }
 
+    let models: std::collections::HashMap<u32, Model> = dataset
+        .objects
+        .iter()
+        .map(|(&id, o)| (id, Model::new(&o.mesh)))
+        .collect();
     let mut renderer = Renderer::new();
     let mut out = vec![0.0; params.taus.len()];
     let full = rate(Duration::from_secs(3), || {
         for ((est, gt, image), test) in pairs.iter().zip(&tests) {
             let obj = &dataset.objects[&est.obj_id];
-            let corners = obj.mesh.bbox_corners();
+            let model = &models[&est.obj_id];
             let (w, h) = (test.rays.width, test.rays.height);
-            let gt_depth = renderer.render(&obj.mesh, &corners, &gt.pose, &image.camera, w, h);
+            let gt_depth = renderer.render_model(model, &gt.pose, &image.camera, w, h);
             let view = GtView::new(test, gt_depth, &params);
-            let est_depth = renderer.render(&obj.mesh, &corners, &est.pose, &image.camera, w, h);
+            let est_depth = renderer.render_model(model, &est.pose, &image.camera, w, h);
             vsd(
                 test,
                 &view,
@@ -83,10 +88,8 @@ fn main() {
         .iter()
         .zip(&tests)
         .map(|((est, gt, image), test)| {
-            let obj = &dataset.objects[&est.obj_id];
-            let r = renderer.render(
-                &obj.mesh,
-                &obj.mesh.bbox_corners(),
+            let r = renderer.render_model(
+                &models[&est.obj_id],
                 &gt.pose,
                 &image.camera,
                 test.rays.width,
@@ -99,14 +102,8 @@ fn main() {
         for (((est, _, image), test), view) in pairs.iter().zip(&tests).zip(&views) {
             let obj = &dataset.objects[&est.obj_id];
             let (w, h) = (test.rays.width, test.rays.height);
-            let est_depth = renderer.render(
-                &obj.mesh,
-                &obj.mesh.bbox_corners(),
-                &est.pose,
-                &image.camera,
-                w,
-                h,
-            );
+            let est_depth =
+                renderer.render_model(&models[&est.obj_id], &est.pose, &image.camera, w, h);
             vsd(test, view, &est_depth, obj.info.diameter, &params, &mut out);
         }
         pairs.len()

@@ -529,10 +529,13 @@ fn read_depth_png(path: &Path, depth_scale: f32) -> Result<DepthImage> {
     reader
         .next_frame(&mut buf)
         .map_err(|e| png_error(path, e))?;
-    // Samples are big-endian and rows unpadded at 8 and 16 bits.
+    // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
+    // straight into the new buffer vectorise (an indexed loop or `chunks_exact` did not).
     let data: Vec<f32> = if sixteen {
-        buf.chunks_exact(2)
-            .map(|b| f32::from(u16::from_be_bytes([b[0], b[1]])) * depth_scale)
+        let (samples, _) = buf.as_chunks::<2>();
+        samples
+            .iter()
+            .map(|&b| f32::from(u16::from_be_bytes(b)) * depth_scale)
             .collect()
     } else {
         buf.iter().map(|&v| f32::from(v) * depth_scale).collect()

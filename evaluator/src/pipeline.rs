@@ -2,7 +2,7 @@
 //! target considers, computes their errors image by image in parallel (rayon, on the caller's
 //! pool), then matches and scores at every threshold.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
@@ -10,11 +10,11 @@ use rayon::prelude::*;
 use crate::dataset::{Dataset, Image};
 use crate::error::{Error, Result};
 use crate::matching::{EstimateErrors, valid_gts};
-use crate::math::{Pose, Pt3};
+use crate::math::Pose;
 use crate::pose_error::vsd::{GtView, TestImage, vsd};
 use crate::pose_error::{self, sphere_projections_overlap, spheres_overlap};
 use crate::protocol::{Column, ErrorKind, Protocol, columns, normalised_error};
-use crate::render::{DepthWindow, Renderer};
+use crate::render::{DepthWindow, Model, PixelBox, Renderer, screen_box};
 use crate::report::{self, Report};
 use crate::results::Results;
 use crate::score::{ScoredImage, Scores, localization_scores};
@@ -148,7 +148,8 @@ pub fn evaluate(
 
 /// What every error needs of an object, computed once per evaluation.
 struct ObjectData {
-    bbox_corners: HashMap<u32, [Pt3; 8]>,
+    /// Meshes prepared for rendering (closedness proven once), for VSD.
+    models: HashMap<u32, Model>,
     symmetries: HashMap<u32, Vec<Pose>>,
 }
 
@@ -159,11 +160,15 @@ impl ObjectData {
             .iter()
             .any(|e| matches!(e.kind, ErrorKind::Mssd | ErrorKind::Mspd));
         ObjectData {
-            bbox_corners: dataset
-                .objects
-                .iter()
-                .map(|(&id, o)| (id, o.mesh.bbox_corners()))
-                .collect(),
+            models: if protocol.vsd().is_some() {
+                dataset
+                    .objects
+                    .iter()
+                    .map(|(&id, o)| (id, Model::new(&o.mesh)))
+                    .collect()
+            } else {
+                HashMap::new()
+            },
             symmetries: if needs_syms {
                 dataset
                     .objects
@@ -191,17 +196,109 @@ struct Context<'a> {
     objects: &'a ObjectData,
 }
 
+/// The renders VSD needs in one image, made before the test depth image is available.
+#[derive(Default)]
+struct ImageRenders {
+    /// Per estimate (index into the results), its render.
+    estimates: HashMap<usize, DepthWindow>,
+    /// Per ground-truth instance, its render.
+    gts: HashMap<usize, DepthWindow>,
+    /// (estimate, ground truth) pairs whose VSD must be computed; every other pair's is 1.
+    pairs: HashSet<(usize, usize)>,
+}
+
 impl Context<'_> {
+    /// The (object, estimate, ground truth) triples of an image whose VSD needs renders. A pair
+    /// needs nothing when the projected bounding spheres (bop_toolkit's test) or the screen
+    /// boxes of the two renders do not overlap: no pixel is then in both, and the error is 1
+    /// for every tau.
+    fn vsd_pairs(
+        &self,
+        work: &ImageWork,
+        image: &Image,
+        size: (u32, u32),
+    ) -> Vec<(u32, usize, usize)> {
+        let (w, h) = size;
+        let mut pairs = Vec::new();
+        for (obj_id, ests) in &work.estimates {
+            let model = &self.objects.models[obj_id];
+            let radius = 0.5 * self.dataset.objects[obj_id].info.diameter;
+            let gts: Vec<(usize, Option<PixelBox>)> = image
+                .gt
+                .iter()
+                .enumerate()
+                .filter(|(_, g)| g.obj_id == *obj_id)
+                .map(|(i, g)| (i, screen_box(model, &g.pose, &image.camera, w, h)))
+                .collect();
+            for &(idx, _) in ests {
+                let pose = &self.results.estimates[idx].pose;
+                let Some(est_box) = screen_box(model, pose, &image.camera, w, h) else {
+                    continue;
+                };
+                for &(gi, gt_box) in &gts {
+                    if sphere_projections_overlap(radius, &pose.t, &image.gt[gi].pose.t)
+                        && gt_box.is_some_and(|b| b.overlaps(&est_box))
+                    {
+                        pairs.push((*obj_id, idx, gi));
+                    }
+                }
+            }
+        }
+        pairs
+    }
+
+    /// Renders each estimate and ground truth of `pairs` once.
+    fn render_pairs(
+        &self,
+        pairs: &[(u32, usize, usize)],
+        image: &Image,
+        size: (u32, u32),
+    ) -> ImageRenders {
+        let mut renders = ImageRenders::default();
+        let mut renderer = Renderer::new();
+        let (w, h) = size;
+        for &(obj_id, idx, gi) in pairs {
+            let model = &self.objects.models[&obj_id];
+            renders.pairs.insert((idx, gi));
+            renders.estimates.entry(idx).or_insert_with(|| {
+                let pose = &self.results.estimates[idx].pose;
+                renderer.render_model(model, pose, &image.camera, w, h)
+            });
+            renders.gts.entry(gi).or_insert_with(|| {
+                renderer.render_model(model, &image.gt[gi].pose, &image.camera, w, h)
+            });
+        }
+        renders
+    }
+
     fn image_errors(&self, work: &ImageWork) -> Result<Vec<EstimateErrors>> {
         let image = &self.dataset.scenes[&work.scene_id].images[&work.im_id];
-        let test = match self.protocol.vsd() {
-            Some(_) if !work.estimates.iter().all(|(_, e)| e.is_empty()) => {
-                let depth = self.dataset.load_depth(work.scene_id, work.im_id)?;
-                Some(TestImage::new(&depth, &image.camera))
-            }
-            _ => None,
+        let size = self.dataset.image_size;
+        let pairs = match self.protocol.vsd() {
+            Some(_) => self.vsd_pairs(work, image, size),
+            None => Vec::new(),
         };
-        let mut renderer = Renderer::new();
+        // The depth image is decoded only when some pair needs it, while the pairs are
+        // rendered (on another worker when one is idle).
+        let (test, mut renders) = if pairs.is_empty() {
+            (None, ImageRenders::default())
+        } else {
+            let (depth, renders) = rayon::join(
+                || self.dataset.load_depth(work.scene_id, work.im_id),
+                || self.render_pairs(&pairs, image, size),
+            );
+            let test = TestImage::new(depth?, &image.camera);
+            let actual = (test.rays.width, test.rays.height);
+            let renders = if actual == size {
+                renders
+            } else {
+                // A depth image of another size than the camera files state: render again
+                // at its size.
+                let pairs = self.vsd_pairs(work, image, actual);
+                self.render_pairs(&pairs, image, actual)
+            };
+            (Some(test), renders)
+        };
         let mut pts_scratch = Vec::new();
         let mut px_scratch = Vec::new();
         let mut gt_views: HashMap<usize, GtView> = HashMap::new();
@@ -220,7 +317,6 @@ impl Context<'_> {
             for &(idx, est_id) in ests {
                 let est = &self.results.estimates[idx];
                 let mut errors = vec![vec![0.0; gt_ids.len()]; self.columns.len()];
-                let mut est_render: Option<DepthWindow> = None;
                 for (gi, &gt_id) in gt_ids.iter().enumerate() {
                     let gt = &image.gt[gt_id as usize];
                     let mut c = 0;
@@ -229,26 +325,15 @@ impl Context<'_> {
                             ErrorKind::Vsd(params) => {
                                 let n = params.taus.len();
                                 let mut vals = vec![1.0; n];
-                                let test = test.as_ref().expect("depth loaded for VSD");
-                                if sphere_projections_overlap(
-                                    0.5 * diameter,
-                                    &est.pose.t,
-                                    &gt.pose.t,
-                                ) {
-                                    let est_depth = est_render.get_or_insert_with(|| {
-                                        self.render(&mut renderer, *obj_id, &est.pose, image, test)
+                                let gt_id = gt_id as usize;
+                                if let (Some(test), true) =
+                                    (&test, renders.pairs.contains(&(idx, gt_id)))
+                                {
+                                    let view = gt_views.entry(gt_id).or_insert_with(|| {
+                                        let r = renders.gts.remove(&gt_id).unwrap_or_default();
+                                        GtView::new(test, r, params)
                                     });
-                                    let view =
-                                        gt_views.entry(gt_id as usize).or_insert_with(|| {
-                                            let r = self.render(
-                                                &mut renderer,
-                                                *obj_id,
-                                                &gt.pose,
-                                                image,
-                                                test,
-                                            );
-                                            GtView::new(test, r, params)
-                                        });
+                                    let est_depth = &renders.estimates[&idx];
                                     vsd(test, view, est_depth, diameter, params, &mut vals);
                                 }
                                 for v in vals {
@@ -312,23 +397,5 @@ impl Context<'_> {
             gt_views.clear();
         }
         Ok(out)
-    }
-
-    fn render(
-        &self,
-        renderer: &mut Renderer,
-        obj_id: u32,
-        pose: &Pose,
-        image: &Image,
-        test: &TestImage,
-    ) -> DepthWindow {
-        renderer.render(
-            &self.dataset.objects[&obj_id].mesh,
-            &self.objects.bbox_corners[&obj_id],
-            pose,
-            &image.camera,
-            test.rays.width,
-            test.rays.height,
-        )
     }
 }

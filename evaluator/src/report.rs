@@ -58,7 +58,8 @@ pub struct Report {
     pub bop19_average_recall_mssd: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bop19_average_recall_mspd: Option<f64>,
-    /// BOP'19: mean over images of the time given for the image; absent when any time is negative.
+    /// BOP'19: mean over images of the time given for the image; -1 when any time is negative
+    /// (not measured), as bop_toolkit writes it. Absent for other protocols.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bop19_average_time_per_image: Option<f64>,
     /// BOP'19: per object (and per scene), the average recall over the three errors.
@@ -280,7 +281,8 @@ pub(crate) fn build(
             ) {
                 report.bop19_average_recall = Some(mean(&[v, s, p]));
             }
-            report.bop19_average_time_per_image = results.average_time_per_image();
+            report.bop19_average_time_per_image =
+                Some(results.average_time_per_image().unwrap_or(-1.0));
             report.recall_vs_threshold = threshold_curves(protocol, columns, &per_column);
             report.obj_average_recalls =
                 grouped_average_recall(protocol, columns, &per_column, |s| &s.obj_recalls);

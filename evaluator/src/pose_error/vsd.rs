@@ -52,30 +52,27 @@ impl PixelRays {
     }
 }
 
-/// The test image prepared for VSD: its distance map.
+/// The test image prepared for VSD: its depth, turned into distances only where a render
+/// needs them (an object covers a few thousand of the image's pixels, and a whole distance map
+/// cost more than all of an image's renders).
 pub struct TestImage {
     pub rays: PixelRays,
-    dist: Vec<f64>,
+    depth: Vec<f32>,
 }
 
 impl TestImage {
-    pub fn new(depth: &DepthImage, k: &Intrinsics) -> Self {
-        let rays = PixelRays::new(k, depth.width, depth.height);
-        let mut dist = Vec::with_capacity(depth.data.len());
-        for y in 0..depth.height {
-            let row = &depth.data[(y * depth.width) as usize..((y + 1) * depth.width) as usize];
-            dist.extend(
-                row.iter()
-                    .enumerate()
-                    .map(|(x, &d)| rays.distance(x as u32, y, d)),
-            );
+    pub fn new(depth: DepthImage, k: &Intrinsics) -> Self {
+        TestImage {
+            rays: PixelRays::new(k, depth.width, depth.height),
+            depth: depth.data,
         }
-        TestImage { rays, dist }
     }
 
+    /// Distance of the measured surface at pixel (x, y), 0 where depth is missing.
     #[inline]
     fn at(&self, x: u32, y: u32) -> f64 {
-        self.dist[(y * self.rays.width + x) as usize]
+        let d = self.depth[(y * self.rays.width + x) as usize];
+        self.rays.distance(x, y, d)
     }
 }
 
@@ -84,14 +81,20 @@ pub struct GtView {
     window: DepthWindow,
     /// Distance map of the render over `window` (0 = no surface).
     dist: Vec<f64>,
+    /// Distance map of the test image over `window`.
+    test_dist: Vec<f64>,
     visib: Vec<bool>,
 }
 
 impl GtView {
     pub fn new(test: &TestImage, render: DepthWindow, params: &VsdParams) -> Self {
         let delta = params.delta as f32;
-        let mut dist = Vec::with_capacity(render.data.len());
-        let mut visib = Vec::with_capacity(render.data.len());
+        let n = render.data.len();
+        let (mut dist, mut test_dist, mut visib) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
         for dy in 0..render.height {
             let y = render.y0 + dy;
             for dx in 0..render.width {
@@ -99,25 +102,24 @@ impl GtView {
                 let d = test
                     .rays
                     .distance(x, y, render.data[(dy * render.width + dx) as usize]);
-                visib.push(visible(params.visib_mode, test.at(x, y), d, delta));
+                let t = test.at(x, y);
+                visib.push(visible(params.visib_mode, t, d, delta));
                 dist.push(d);
+                test_dist.push(t);
             }
         }
         GtView {
             window: render,
             dist,
+            test_dist,
             visib,
         }
     }
 
     #[inline]
-    fn get(&self, x: u32, y: u32) -> Option<(f64, bool)> {
+    fn contains(&self, x: u32, y: u32) -> bool {
         let w = &self.window;
-        if x < w.x0 || y < w.y0 || x - w.x0 >= w.width || y - w.y0 >= w.height {
-            return None;
-        }
-        let i = ((y - w.y0) * w.width + (x - w.x0)) as usize;
-        Some((self.dist[i], self.visib[i]))
+        x >= w.x0 && y >= w.y0 && x - w.x0 < w.width && y - w.y0 < w.height
     }
 }
 
@@ -170,7 +172,7 @@ pub fn vsd(
                 continue;
             }
             let d_est = test.rays.distance(x, y, depth_est);
-            let visib_est = visible(params.visib_mode, test.at(x, y), d_est, delta) || visib_gt;
+            let visib_est = visible(params.visib_mode, gt.test_dist[i], d_est, delta) || visib_gt;
             count_pixel(d_gt, visib_gt, d_est, visib_est);
         }
     }
@@ -179,7 +181,7 @@ pub fn vsd(
         let y = est.y0 + dy;
         for dx in 0..est.width {
             let x = est.x0 + dx;
-            if gt.get(x, y).is_some() {
+            if gt.contains(x, y) {
                 continue;
             }
             let depth_est = est.data[(dy * est.width + dx) as usize];
@@ -226,7 +228,7 @@ mod tests {
                 depth.data[(y * 640 + x) as usize] = render.at(x, y);
             }
         }
-        (TestImage::new(&depth, &k()), render)
+        (TestImage::new(depth, &k()), render)
     }
 
     fn params(taus: Vec<f64>) -> VsdParams {

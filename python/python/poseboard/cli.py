@@ -143,7 +143,7 @@ def table(r: dict[str, Any]) -> str:
         )
         lines.append(f"{'object':>8}  {'AR':>8}")
         lines += [f"{o:>8}  {v:>8.4f}" for o, v in r.get("obj_average_recalls", {}).items()]
-        if "bop19_average_time_per_image" in r:
+        if r.get("bop19_average_time_per_image", -1) >= 0:
             lines.append(f"average time per image: {r['bop19_average_time_per_image']:.3f} s")
     for name, ar in r["average_recalls"].items():
         # Errors beyond the protocol's own (e.g. ADD) get their average recall listed.

@@ -302,7 +302,8 @@ pub fn table(r: &Report) -> String {
             for (o, v) in &r.obj_average_recalls {
                 let _ = writeln!(s, "{o:>8}  {v:>8.4}");
             }
-            if let Some(t) = r.bop19_average_time_per_image {
+            // bop_toolkit writes -1 when the file gives no times.
+            if let Some(t) = r.bop19_average_time_per_image.filter(|t| *t >= 0.0) {
                 let _ = writeln!(s, "average time per image: {t:.3} s");
             }
         }

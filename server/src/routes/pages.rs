@@ -67,9 +67,12 @@ pub(crate) mod filters {
             .map_or("–".to_string(), |v| format!("{:.1}", v * 100.0)))
     }
 
+    /// A time in seconds; missing or negative (bop_toolkit's -1: not measured) shows as "–".
     #[askama::filter_fn]
     pub fn opt_secs(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
-        Ok(v.get().map_or("–".to_string(), |v| format!("{v:.3}")))
+        Ok(v.get()
+            .filter(|v| *v >= 0.0)
+            .map_or("–".to_string(), |v| format!("{v:.3}")))
     }
 
     #[askama::filter_fn]

@@ -105,7 +105,11 @@ impl Store {
             let loc = report.localization.as_ref();
             let (time_avg, recall) = match report.protocol {
                 ProtocolName::Eccv18 => (report.average_time_per_target, loc.map(|l| l.recall)),
-                ProtocolName::Bop19 => (report.bop19_average_time_per_image, None),
+                // A negative time (bop_toolkit's -1) means the file gave none.
+                ProtocolName::Bop19 => (
+                    report.bop19_average_time_per_image.filter(|t| *t >= 0.0),
+                    None,
+                ),
             };
             let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
                 column: "report_json",

@@ -1,0 +1,141 @@
+#!/usr/bin/env python3
+"""Times `poseboard eval` on a paper-sized evaluation built from the reference fixture.
+
+The reference dataset (tests/fixtures/reference, 2 scenes, 28 targets) is copied COPIES times
+under new scene ids (depth images, models and camera files are symbolic links, the small scene
+JSON files are linked too), and a reference result file is replicated with its scene ids
+remapped the same way. Every copy is evaluated exactly as the original, so every score of the
+paper-sized set must equal the original's: the script checks that, then prints the wall time
+and the peak memory of each protocol on all cores, and the VSD estimates per second.
+
+    cargo build --release -p server
+    python3 evaluator/benches/paper_sized.py [--copies 611] [--results noisemedium] [--threads N]
+
+611 copies give 17,108 targets, the size of a BOP'19 core dataset's test set (the ECCV'18
+paper's figures are for sets of this size). Uses only the Python standard library.
+"""
+
+import argparse
+import csv
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+FIXTURE = ROOT / "tests" / "fixtures" / "reference"
+BINARY = ROOT / "target" / "release" / "poseboard"
+TOOLKIT_VSD_PER_S = 47.0
+
+
+def build_dataset(out: Path, copies: int) -> dict:
+    """Writes the replicated dataset to `out`; returns {new scene id: original scene id}."""
+    src = FIXTURE / "dataset"
+    out.mkdir(parents=True)
+    for name in ["camera.json", "models", "models_eval"]:
+        (out / name).symlink_to(src / name)
+    scenes = sorted(int(p.name) for p in (src / "test").iterdir() if p.is_dir())
+    mapping = {}
+    (out / "test").mkdir()
+    for c in range(copies):
+        for s in scenes:
+            new = c * len(scenes) + s
+            mapping[new] = s
+            d = out / "test" / f"{new:06d}"
+            d.mkdir()
+            for entry in (src / "test" / f"{s:06d}").iterdir():
+                (d / entry.name).symlink_to(entry)
+    targets = json.loads((src / "test_targets_bop19.json").read_text())
+    by_original = {}
+    for t in targets:
+        by_original.setdefault(t["scene_id"], []).append(t)
+    replicated = [
+        dict(t, scene_id=new) for new, s in sorted(mapping.items()) for t in by_original.get(s, [])
+    ]
+    (out / "test_targets_bop19.json").write_text(json.dumps(replicated))
+    return mapping
+
+
+def replicate_results(src: Path, dst: Path, mapping: dict) -> int:
+    """Writes `src` once per copy with remapped scene ids; returns the number of rows."""
+    with src.open() as f:
+        rows = list(csv.reader(f))
+    header, body = rows[0], rows[1:]
+    copies_of = {}
+    for new, s in mapping.items():
+        copies_of.setdefault(s, []).append(new)
+    n = 0
+    with dst.open("w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(header)
+        for new_ids in zip(*[sorted(v) for _, v in sorted(copies_of.items())]):
+            remap = dict(zip(sorted(copies_of), new_ids))
+            for r in body:
+                w.writerow([str(remap[int(r[0])])] + r[1:])
+                n += 1
+    return n
+
+
+def evaluate(binary: Path, dataset: Path, results: Path, protocol: str, threads, out: Path):
+    """Runs poseboard eval; returns (report, seconds, peak resident MB)."""
+    cmd = [str(binary), "eval", "--dataset", str(dataset), "--results", str(results),
+           "--protocol", protocol, "--out", str(out)]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    cmd = ["/usr/bin/time", "-v"] + cmd
+    start = time.monotonic()
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    seconds = time.monotonic() - start
+    if run.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{run.stderr}")
+    peak_kb = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", run.stderr).group(1))
+    return json.loads(out.read_text()), seconds, peak_kb / 1024
+
+
+# Scores that do not depend on how many copies there are (per-scene breakdowns do).
+COMPARED = ["recall", "mean_obj_recall", "obj_recalls", "bop19_average_recall",
+            "bop19_average_recall_vsd", "bop19_average_recall_mssd",
+            "bop19_average_recall_mspd", "obj_average_recalls", "average_recalls",
+            "per_error_recall_per_threshold"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--copies", type=int, default=611)
+    ap.add_argument("--results", default="noisemedium")
+    ap.add_argument("--threads", type=int, default=None, help="default: every core")
+    ap.add_argument("--binary", type=Path, default=BINARY,
+                    help="poseboard to time (e.g. an older build, for a ratio)")
+    args = ap.parse_args()
+    if not args.binary.exists():
+        sys.exit(f"{args.binary} is missing: cargo build --release -p server")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        mapping = build_dataset(tmp / "big" / "synthA", args.copies)
+        name = f"{args.results}_synthA-test.csv"
+        rows = replicate_results(FIXTURE / "results" / name, tmp / "big" / name, mapping)
+        targets = len(json.loads((tmp / "big" / "synthA" / "test_targets_bop19.json").read_text()))
+        print(f"paper-sized set: {len(mapping)} scenes, {targets} targets, {rows} estimates "
+              f"({args.copies} copies of the reference), threads: {args.threads or os.cpu_count()}")
+        for protocol in ["eccv18", "bop19"]:
+            small, _, _ = evaluate(args.binary, FIXTURE / "dataset", FIXTURE / "results" / name, protocol,
+                                   args.threads, tmp / f"small_{protocol}.json")
+            big, seconds, mb = evaluate(args.binary, tmp / "big" / "synthA", tmp / "big" / name, protocol,
+                                        args.threads, tmp / f"big_{protocol}.json")
+            differing = [k for k in COMPARED if small.get(k) != big.get(k)]
+            if differing:
+                sys.exit(f"{protocol}: scores differ from the reference file's: {differing}")
+            evaluated = big["estimates_evaluated"]
+            print(f"  {protocol:<7} {seconds:6.2f} s  peak {mb:6.0f} MB  "
+                  f"{evaluated / seconds:8.0f} estimates/s "
+                  f"({evaluated / seconds / TOOLKIT_VSD_PER_S:.0f}x bop_toolkit's 47/s)  "
+                  f"scores equal the reference file's")
+
+
+if __name__ == "__main__":
+    main()
