@@ -160,7 +160,7 @@ pub fn vsd(
                 .collect(),
         };
         let k = Intrinsics::from_row_major(&k);
-        let test = TestImage::new(&depth, &k);
+        let test = TestImage::new(depth, &k);
         let corners = mesh.bbox_corners();
         let mut renderer = Renderer::new();
         let mut render =
