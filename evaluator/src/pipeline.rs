@@ -45,6 +45,26 @@ pub struct Evaluation {
 }
 
 impl Evaluation {
+    /// Every evaluated estimate with its errors against each ground-truth instance of its
+    /// object, keyed by bop_toolkit's error signature: the layout of `--errors-out`.
+    pub fn error_rows(&self) -> Vec<serde_json::Value> {
+        self.errors
+            .iter()
+            .map(|e| {
+                let errors: serde_json::Map<String, serde_json::Value> = self
+                    .columns
+                    .iter()
+                    .enumerate()
+                    .map(|(c, col)| (col.signature.clone(), serde_json::json!(e.errors[c])))
+                    .collect();
+                serde_json::json!({
+                    "scene_id": e.scene_id, "im_id": e.im_id, "obj_id": e.obj_id,
+                    "est_id": e.est_id, "score": e.score, "gt_ids": e.gt_ids, "errors": errors,
+                })
+            })
+            .collect()
+    }
+
     /// Full scores of one error column at one threshold of correctness (normalised as the
     /// protocol normalises that error).
     pub fn scores(

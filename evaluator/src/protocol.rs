@@ -298,3 +298,81 @@ pub fn normalised_error(dataset: &Dataset, kind: &ErrorKind, e: &EstimateErrors,
         }
     }
 }
+
+/// Protocol parameters a user may override (the flags of `poseboard eval`, the keywords of the
+/// Python package), applied in one place so that every front end gives one report for one set
+/// of options; unset ones keep the protocol's values.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    pub visib_mode: Option<VisibMode>,
+    pub tau: Option<Vec<f64>>,
+    pub tau_normalized: Option<bool>,
+    pub theta: Option<Vec<f64>>,
+    pub delta: Option<f64>,
+    /// bop_toolkit's encoding: N, -1 = as many as instances, 0 = all.
+    pub n_top: Option<i64>,
+    pub visib_gt_min: Option<f64>,
+    pub max_sym_disc_step: Option<f64>,
+    /// Errors to compute beyond the protocol's own (ADD, ADI, AD), at `ad_threshold`.
+    pub extra_errors: Vec<ErrorKind>,
+    /// Threshold of correctness of the extra errors, as a fraction of the object diameter.
+    pub ad_threshold: f64,
+}
+
+impl Overrides {
+    /// Applies the overrides; the message says which value is wrong.
+    pub fn apply(&self, protocol: &mut Protocol) -> Result<(), String> {
+        if let Some(n) = self.n_top {
+            protocol.n_top = NTop::from_i64(n)?;
+        }
+        if let Some(v) = self.visib_gt_min {
+            protocol.visib_gt_min = v;
+        }
+        if let Some(s) = self.max_sym_disc_step {
+            protocol.max_sym_disc_step = s;
+        }
+        let vsd_changed = self.visib_mode.is_some()
+            || self.tau.is_some()
+            || self.tau_normalized.is_some()
+            || self.theta.is_some()
+            || self.delta.is_some();
+        if vsd_changed {
+            let Some((p, ths)) = protocol.vsd() else {
+                return Err("this protocol has no VSD to configure".into());
+            };
+            let (p, ths) = (p.clone(), ths.to_vec());
+            // eccv18 keeps only its main tau and theta by default: set_vsd adds the curves.
+            let eccv18 = protocol.name == ProtocolName::Eccv18;
+            let taus = self.tau.clone().unwrap_or_else(|| {
+                if eccv18 {
+                    vec![protocol.main_tau]
+                } else {
+                    p.taus.clone()
+                }
+            });
+            let thresholds = self.theta.clone().unwrap_or_else(|| {
+                if eccv18 {
+                    vec![protocol.main_theta]
+                } else {
+                    ths
+                }
+            });
+            protocol.set_vsd(
+                self.delta.unwrap_or(p.delta),
+                taus,
+                self.tau_normalized.unwrap_or(p.normalized_by_diameter),
+                self.visib_mode.unwrap_or(p.visib_mode),
+                thresholds,
+            );
+        }
+        for kind in &self.extra_errors {
+            if !protocol.errors.iter().any(|e| e.kind == *kind) {
+                protocol.errors.push(ErrorSpec {
+                    kind: kind.clone(),
+                    thresholds: vec![self.ad_threshold],
+                });
+            }
+        }
+        protocol.validate()
+    }
+}

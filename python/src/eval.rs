@@ -291,26 +291,8 @@ pub fn evaluate(
     outcome.map_err(|f| f.into_py(py))
 }
 
-/// Every evaluated estimate with its errors against each ground-truth instance of its object,
-/// keyed by bop_toolkit's error signature: the layout of `poseboard eval --errors-out`.
 fn errors_json(evaluation: &Evaluation) -> String {
-    let rows: Vec<serde_json::Value> = evaluation
-        .errors
-        .iter()
-        .map(|e| {
-            let errors: serde_json::Map<String, serde_json::Value> = evaluation
-                .columns
-                .iter()
-                .enumerate()
-                .map(|(c, col)| (col.signature.clone(), serde_json::json!(e.errors[c])))
-                .collect();
-            serde_json::json!({
-                "scene_id": e.scene_id, "im_id": e.im_id, "obj_id": e.obj_id,
-                "est_id": e.est_id, "score": e.score, "gt_ids": e.gt_ids, "errors": errors,
-            })
-        })
-        .collect();
-    serde_json::to_string_pretty(&rows).expect("errors serialise")
+    serde_json::to_string_pretty(&evaluation.error_rows()).expect("errors serialise")
 }
 
 /// Validates a result file; with a dataset, also counts the targets it leaves without an

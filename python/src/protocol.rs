@@ -4,10 +4,11 @@
 //! the two programs' reports under overrides to keep them in step.
 
 use evaluator::Protocol;
-use evaluator::protocol::{ErrorKind, ErrorSpec, NTop, ProtocolName};
+use evaluator::protocol::{ErrorKind, ProtocolName};
 use evaluator::visibility::VisibMode;
 
-/// Protocol parameters a user may override; unset ones keep the protocol's values.
+/// Protocol parameters a user may override, as `evaluate()` takes them (strings where the
+/// command line takes words); unset ones keep the protocol's values.
 #[derive(Debug, Default)]
 pub struct Overrides {
     pub visib_mode: Option<String>,
@@ -22,71 +23,36 @@ pub struct Overrides {
     pub ad_threshold: f64,
 }
 
-/// The named protocol with `overrides` applied; the message says which value is wrong.
+/// The named protocol with `overrides` applied (by the evaluator's own rule, as the command
+/// line applies them); the message says which value is wrong.
 pub fn build(name: &str, o: &Overrides) -> Result<Protocol, String> {
     let mut protocol = Protocol::named(name.parse::<ProtocolName>()?);
-    if let Some(n) = o.n_top {
-        protocol.n_top = NTop::from_i64(n)?;
+    let extra_errors = o
+        .extra_errors
+        .iter()
+        .map(|e| match e.as_str() {
+            "add" => Ok(ErrorKind::Add),
+            "adi" => Ok(ErrorKind::Adi),
+            "ad" => Ok(ErrorKind::Ad),
+            other => Err(format!("unknown extra error `{other}` (add, adi or ad)")),
+        })
+        .collect::<Result<_, _>>()?;
+    evaluator::protocol::Overrides {
+        visib_mode: o
+            .visib_mode
+            .as_deref()
+            .map(str::parse::<VisibMode>)
+            .transpose()?,
+        tau: o.tau.clone(),
+        tau_normalized: o.tau_normalized,
+        theta: o.theta.clone(),
+        delta: o.delta,
+        n_top: o.n_top,
+        visib_gt_min: o.visib_gt_min,
+        max_sym_disc_step: o.max_sym_disc_step,
+        extra_errors,
+        ad_threshold: o.ad_threshold,
     }
-    if let Some(v) = o.visib_gt_min {
-        protocol.visib_gt_min = v;
-    }
-    if let Some(s) = o.max_sym_disc_step {
-        protocol.max_sym_disc_step = s;
-    }
-    let visib_mode = o
-        .visib_mode
-        .as_deref()
-        .map(str::parse::<VisibMode>)
-        .transpose()?;
-    let vsd_changed = visib_mode.is_some()
-        || o.tau.is_some()
-        || o.tau_normalized.is_some()
-        || o.theta.is_some()
-        || o.delta.is_some();
-    if vsd_changed {
-        let Some((p, ths)) = protocol.vsd() else {
-            return Err("this protocol has no VSD to configure".into());
-        };
-        let (p, ths) = (p.clone(), ths.to_vec());
-        // eccv18 keeps only its main tau and theta by default: set_vsd adds the paper's curves.
-        let eccv18 = protocol.name == ProtocolName::Eccv18;
-        let taus = o.tau.clone().unwrap_or_else(|| {
-            if eccv18 {
-                vec![protocol.main_tau]
-            } else {
-                p.taus.clone()
-            }
-        });
-        let thresholds = o.theta.clone().unwrap_or_else(|| {
-            if eccv18 {
-                vec![protocol.main_theta]
-            } else {
-                ths
-            }
-        });
-        protocol.set_vsd(
-            o.delta.unwrap_or(p.delta),
-            taus,
-            o.tau_normalized.unwrap_or(p.normalized_by_diameter),
-            visib_mode.unwrap_or(p.visib_mode),
-            thresholds,
-        );
-    }
-    for extra in &o.extra_errors {
-        let kind = match extra.as_str() {
-            "add" => ErrorKind::Add,
-            "adi" => ErrorKind::Adi,
-            "ad" => ErrorKind::Ad,
-            other => return Err(format!("unknown extra error `{other}` (add, adi or ad)")),
-        };
-        if !protocol.errors.iter().any(|e| e.kind == kind) {
-            protocol.errors.push(ErrorSpec {
-                kind,
-                thresholds: vec![o.ad_threshold],
-            });
-        }
-    }
-    protocol.validate()?;
+    .apply(&mut protocol)?;
     Ok(protocol)
 }

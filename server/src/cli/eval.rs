@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
-use evaluator::protocol::{ErrorKind, ErrorSpec, NTop, ProtocolName};
+use evaluator::protocol::{ErrorKind, Overrides, ProtocolName};
 use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -34,12 +34,12 @@ pub struct EvalArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     #[command(flatten)]
-    pub overrides: Overrides,
+    pub overrides: OverrideArgs,
 }
 
 /// Protocol parameters a user may override; unset ones keep the protocol's values.
 #[derive(Args, Debug, Default)]
-pub struct Overrides {
+pub struct OverrideArgs {
     /// VSD visibility: bop18 (the paper: missing depth hides) or bop19 (missing depth shows).
     #[arg(long)]
     pub visib_mode: Option<VisibMode>,
@@ -81,64 +81,30 @@ pub enum ExtraError {
     Ad,
 }
 
-impl Overrides {
+impl OverrideArgs {
     pub fn apply(&self, protocol: &mut Protocol) -> Result<()> {
-        if let Some(n) = self.n_top {
-            protocol.n_top = NTop::from_i64(n).map_err(anyhow::Error::msg)?;
+        Overrides {
+            visib_mode: self.visib_mode,
+            tau: self.tau.clone(),
+            tau_normalized: self.tau_normalized,
+            theta: self.theta.clone(),
+            delta: self.delta,
+            n_top: self.n_top,
+            visib_gt_min: self.visib_gt_min,
+            max_sym_disc_step: self.max_sym_disc_step,
+            extra_errors: self
+                .extra_errors
+                .iter()
+                .map(|e| match e {
+                    ExtraError::Add => ErrorKind::Add,
+                    ExtraError::Adi => ErrorKind::Adi,
+                    ExtraError::Ad => ErrorKind::Ad,
+                })
+                .collect(),
+            ad_threshold: self.ad_threshold,
         }
-        if let Some(v) = self.visib_gt_min {
-            protocol.visib_gt_min = v;
-        }
-        if let Some(s) = self.max_sym_disc_step {
-            protocol.max_sym_disc_step = s;
-        }
-        let vsd_changed = self.visib_mode.is_some()
-            || self.tau.is_some()
-            || self.tau_normalized.is_some()
-            || self.theta.is_some()
-            || self.delta.is_some();
-        if vsd_changed {
-            let Some((p, ths)) = protocol.vsd() else {
-                bail!("this protocol has no VSD to configure");
-            };
-            let (p, ths) = (p.clone(), ths.to_vec());
-            let main_theta = protocol.main_theta;
-            let taus = self.tau.clone().unwrap_or_else(|| {
-                if protocol.name == ProtocolName::Eccv18 {
-                    vec![protocol.main_tau]
-                } else {
-                    p.taus.clone()
-                }
-            });
-            let thresholds = self.theta.clone().unwrap_or_else(|| {
-                if protocol.name == ProtocolName::Eccv18 {
-                    vec![main_theta]
-                } else {
-                    ths
-                }
-            });
-            protocol.set_vsd(
-                self.delta.unwrap_or(p.delta),
-                taus,
-                self.tau_normalized.unwrap_or(p.normalized_by_diameter),
-                self.visib_mode.unwrap_or(p.visib_mode),
-                thresholds,
-            );
-        }
-        for extra in &self.extra_errors {
-            let kind = match extra {
-                ExtraError::Add => ErrorKind::Add,
-                ExtraError::Adi => ErrorKind::Adi,
-                ExtraError::Ad => ErrorKind::Ad,
-            };
-            if !protocol.errors.iter().any(|e| e.kind == kind) {
-                protocol.errors.push(ErrorSpec {
-                    kind,
-                    thresholds: vec![self.ad_threshold],
-                });
-            }
-        }
-        protocol.validate().map_err(anyhow::Error::msg)
+        .apply(protocol)
+        .map_err(anyhow::Error::msg)
     }
 }
 
@@ -167,22 +133,7 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
         write_json(out, &evaluation.report)?;
     }
     if let Some(out) = &args.errors_out {
-        let rows: Vec<serde_json::Value> = evaluation
-            .errors
-            .iter()
-            .map(|e| {
-                let errors: serde_json::Map<String, serde_json::Value> = evaluation
-                    .columns
-                    .iter()
-                    .enumerate()
-                    .map(|(c, col)| (col.signature.clone(), serde_json::json!(e.errors[c])))
-                    .collect();
-                serde_json::json!({
-                    "scene_id": e.scene_id, "im_id": e.im_id, "obj_id": e.obj_id,
-                    "est_id": e.est_id, "score": e.score, "gt_ids": e.gt_ids, "errors": errors,
-                })
-            })
-            .collect();
+        let rows = evaluation.error_rows();
         write_json(out, &rows)?;
     }
     Ok(())
