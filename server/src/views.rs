@@ -107,7 +107,7 @@ impl BoardFilter {
 
 /// How a leaderboard's rows are ordered.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Sort {
+enum Sort {
     /// By the average over the datasets shown (or the one dataset's score), best first.
     Average,
     /// By the reported time, fastest first.

@@ -92,6 +92,28 @@ fn hostile_input(kind: Db) {
         &tricky,
     );
     assert_eq!(r.status(), 400);
+    // Values that name nothing are refused, not silently read as something else.
+    for (fields, what) in [
+        (&[("visibility", "Public")][..], "visibility"),
+        (&[("modality", "thermal")][..], "modality"),
+        (&[("training_data", "imagenet")][..], "training_data"),
+        (&[("paper_url", "javascript:alert(1)")][..], "paper_url"),
+        (&[("method", "zero\u{200b}width")][..], "method"),
+    ] {
+        let mut all = vec![("method", "strict"), ("dataset", "synthA")];
+        all.retain(|(k, _)| fields.iter().all(|(f, _)| f != k));
+        all.extend_from_slice(fields);
+        let r = upload_with(&server, &server.token, &all, &tricky);
+        assert_eq!(r.status(), 400, "{kind:?} {what}");
+        assert!(r.text().expect("body").contains(what), "{kind:?} {what}");
+    }
+    for query in ["sort=bogus", "modality=thermal", "training=imagenet"] {
+        let r = client()
+            .get(format!("{}/api/v1/leaderboards/bop19?{query}", server.base))
+            .send()
+            .expect("board");
+        assert_eq!(r.status(), 400, "{kind:?} {query}");
+    }
     // Nothing escaped the data directory.
     assert!(!dir.path().join("etc").exists());
 }
