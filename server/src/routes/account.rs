@@ -114,6 +114,7 @@ async fn start_session(
 
 async fn register(
     State(app): State<AppState>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
     headers: HeaderMap,
     jar: CookieJar,
     Form(c): Form<Credentials>,
@@ -138,7 +139,7 @@ async fn register(
         Ok(p) => p,
         Err(e) => return refuse(StatusCode::UNPROCESSABLE_ENTITY, e.problem_sentence()),
     };
-    let id = match accounts::register(&app.store, &name, &password, false).await {
+    let id = match accounts::sign_up(&app.store, &name, &password, peer.ip()).await {
         Ok(id) => id,
         Err(AppError::Conflict(msg)) => return refuse(StatusCode::CONFLICT, msg),
         Err(e) => return Err(e),

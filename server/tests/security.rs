@@ -1,0 +1,129 @@
+//! Hardening against abuse (issue 11): limits that hold under parallel requests and cannot be
+//! turned against an account's owner, the same work for unknown names as for known ones.
+//!
+//! Requests from different addresses come from different loopback addresses (every
+//! `127.x.y.z` is this machine), so per-address limits are exercised without a proxy.
+
+mod common;
+
+use std::net::IpAddr;
+
+use common::{Db, TestDb, both_databases, browser, reference_datasets, start};
+use reqwest::blocking::Client;
+
+/// A client whose requests come from `ip`, without cookies and not following redirects.
+fn from(ip: &str) -> Client {
+    Client::builder()
+        .local_address(ip.parse::<IpAddr>().expect("address"))
+        .redirect(reqwest::redirect::Policy::none())
+        .build()
+        .expect("client")
+}
+
+fn login(client: &Client, base: &str, name: &str, password: &str) -> u16 {
+    client
+        .post(format!("{base}/login"))
+        .form(&[("name", name), ("password", password)])
+        .send()
+        .expect("login answered")
+        .status()
+        .as_u16()
+}
+
+fn parallel_guesses_stay_within_the_limit(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "guesses");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    // dave registers from 127.0.0.1.
+    browser(&server, "dave");
+    let attacker = from("127.0.0.2");
+    let statuses: Vec<u16> = std::thread::scope(|s| {
+        let guesses: Vec<_> = (0..25)
+            .map(|i| {
+                let (attacker, base) = (&attacker, &server.base);
+                s.spawn(move || login(attacker, base, "dave", &format!("guess number {i}")))
+            })
+            .collect();
+        guesses
+            .into_iter()
+            .map(|g| g.join().expect("guess"))
+            .collect()
+    });
+    let checked = statuses.iter().filter(|&&s| s == 401).count();
+    assert!(
+        checked <= 5,
+        "{kind:?}: {checked} guesses checked: {statuses:?}"
+    );
+    assert!(
+        statuses.iter().all(|&s| s == 401 || s == 429),
+        "{kind:?}: {statuses:?}"
+    );
+    // From a third address the right password waits too: the account is delayed...
+    assert_eq!(
+        login(
+            &from("127.0.0.3"),
+            &server.base,
+            "dave",
+            "correct horse battery"
+        ),
+        429,
+        "{kind:?}"
+    );
+    // ...but not for its owner, from the address it was used from before.
+    assert_eq!(
+        login(
+            &from("127.0.0.1"),
+            &server.base,
+            "dave",
+            "correct horse battery"
+        ),
+        303,
+        "{kind:?}: the owner was locked out"
+    );
+}
+both_databases!(parallel_guesses_stay_within_the_limit);
+
+fn addresses_are_limited_whatever_the_names(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "addrlimit");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    browser(&server, "erin");
+    let sprayer = from("127.0.0.4");
+    // Unknown names are answered like wrong passwords, and count like them.
+    for i in 0..20 {
+        assert_eq!(
+            login(
+                &sprayer,
+                &server.base,
+                &format!("nobody{i}"),
+                "some password"
+            ),
+            401,
+            "{kind:?}: attempt {i}"
+        );
+    }
+    assert_eq!(
+        login(&sprayer, &server.base, "nobody-else", "some password"),
+        429,
+        "{kind:?}"
+    );
+    assert_eq!(
+        login(&sprayer, &server.base, "erin", "correct horse battery"),
+        429,
+        "{kind:?}"
+    );
+    // Other addresses are not affected.
+    assert_eq!(
+        login(
+            &from("127.0.0.5"),
+            &server.base,
+            "erin",
+            "correct horse battery"
+        ),
+        303,
+        "{kind:?}"
+    );
+}
+both_databases!(addresses_are_limited_whatever_the_names);
