@@ -127,3 +127,71 @@ fn addresses_are_limited_whatever_the_names(kind: Db) {
     );
 }
 both_databases!(addresses_are_limited_whatever_the_names);
+
+fn register(client: &Client, base: &str, name: &str) -> u16 {
+    client
+        .post(format!("{base}/register"))
+        .form(&[("name", name), ("password", "correct horse battery")])
+        .send()
+        .expect("register answered")
+        .status()
+        .as_u16()
+}
+
+/// The server's peak resident memory, from the kernel's record of it.
+fn peak_rss_mb(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
+    let kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .expect("VmHWM");
+    kb / 1024
+}
+
+fn registrations_are_limited_per_address(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "reglimit");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let farm = from("127.0.0.6");
+    for i in 0..5 {
+        assert_eq!(
+            register(&farm, &server.base, &format!("farmed{i}")),
+            303,
+            "{kind:?}"
+        );
+    }
+    assert_eq!(register(&farm, &server.base, "farmed5"), 429, "{kind:?}");
+    assert_eq!(
+        register(&from("127.0.0.7"), &server.base, "honest"),
+        303,
+        "{kind:?}"
+    );
+}
+both_databases!(registrations_are_limited_per_address);
+
+/// 50 sign-ups at once, each from its own address so that no limit refuses them: argon2's
+/// memory (~19 MiB a hash) stays bounded because hashes run in turn.
+#[test]
+fn parallel_sign_ups_keep_memory_bounded() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(Db::Sqlite, "memory");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let statuses: Vec<u16> = std::thread::scope(|s| {
+        let sign_ups: Vec<_> = (1..=50)
+            .map(|i| {
+                let base = &server.base;
+                s.spawn(move || register(&from(&format!("127.0.1.{i}")), base, &format!("user{i}")))
+            })
+            .collect();
+        sign_ups
+            .into_iter()
+            .map(|h| h.join().expect("sign-up"))
+            .collect()
+    });
+    assert!(statuses.iter().all(|&s| s == 303), "{statuses:?}");
+    let peak = peak_rss_mb(server.child.id());
+    assert!(peak < 300, "peak resident memory {peak} MB");
+}
