@@ -40,7 +40,7 @@ pub fn router(app: AppState) -> Router {
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
-        .merge(admin::router())
+        .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)
         .layer(CompressionLayer::new())

@@ -8,8 +8,12 @@ mod common;
 
 use std::net::IpAddr;
 
-use common::{Db, TestDb, both_databases, browser, reference_datasets, start};
+use common::{
+    Db, TestDb, admin, both_databases, browser, client, csrf_of, fixtures, get_as,
+    reference_datasets, start, upload,
+};
 use reqwest::blocking::Client;
+use serde_json::Value;
 
 /// A client whose requests come from `ip`, without cookies and not following redirects.
 fn from(ip: &str) -> Client {
@@ -195,3 +199,149 @@ fn parallel_sign_ups_keep_memory_bounded() {
     let peak = peak_rss_mb(server.child.id());
     assert!(peak < 300, "peak resident memory {peak} MB");
 }
+
+/// Signs `name` in with a cookie-keeping browser; returns it and its session's CSRF token.
+fn signed_in(base: &str, name: &str, password: &str) -> (Client, String) {
+    let b = Client::builder()
+        .cookie_store(true)
+        .build()
+        .expect("client");
+    let page = b
+        .post(format!("{base}/login"))
+        .form(&[("name", name), ("password", password), ("next", "/account")])
+        .send()
+        .expect("login")
+        .text()
+        .expect("html");
+    (b, csrf_of(&page))
+}
+
+fn api_takes_cookies_only_with_csrf_and_origin(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "apicsrf");
+    let data = dir.path().join("data");
+    std::fs::create_dir_all(&data).expect("mkdir");
+    std::fs::write(data.join("root.pw"), "root-secret-password\n").expect("pw");
+    let pw = data.join("root.pw");
+    admin(
+        &data,
+        &db,
+        &[
+            "create-user",
+            "root",
+            "--password-file",
+            pw.to_str().expect("path"),
+            "--admin",
+        ],
+    );
+    let server = start(&data, &datasets, &db, &[]);
+    let base = server.base.clone();
+    let file = fixtures().join("results/noisesmall_synthA-test.csv");
+    let r = upload(&server, "moderated", "synthA", &file, None);
+    let id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+    let (root, csrf) = signed_in(&base, "root", "root-secret-password");
+    let hide = format!("{base}/api/v1/admin/submissions/{id}/hide");
+    let ours = base.clone();
+    for (origin, token) in [
+        (Some("https://evil.example"), Some(csrf.as_str())),
+        (Some("http://127.0.0.1:1"), Some(csrf.as_str())),
+        (None, Some(csrf.as_str())),
+        (Some(ours.as_str()), None),
+        (Some(ours.as_str()), Some("forged")),
+    ] {
+        let mut r = root.post(&hide);
+        if let Some(o) = origin {
+            r = r.header("Origin", o);
+        }
+        if let Some(t) = token {
+            r = r.header("X-CSRF-Token", t);
+        }
+        let status = r.send().expect("answered").status();
+        assert_eq!(status, 404, "{kind:?}: origin {origin:?}, token {token:?}");
+    }
+    assert_eq!(
+        get_as(&format!("{base}/api/v1/submissions/{id}"), "").status(),
+        200,
+        "{kind:?}: hidden by a forged request"
+    );
+    let r = root
+        .post(&hide)
+        .header("Origin", ours.as_str())
+        .header("X-CSRF-Token", csrf.as_str())
+        .send()
+        .expect("answered");
+    assert_eq!(r.status(), 200, "{kind:?}");
+
+    // An upload with a user's cookie alone is not signed in.
+    let (user, user_csrf) = browser(&server, "uploader");
+    let form = || {
+        reqwest::blocking::multipart::Form::new()
+            .text("method", "cookie-net")
+            .text("dataset", "synthA")
+            .file("file", &file)
+            .expect("file")
+    };
+    // (Without a body: credentials are refused before one is read, and a body could race that.)
+    let r = user
+        .post(format!("{base}/api/v1/submissions"))
+        .send()
+        .expect("answered");
+    assert_eq!(r.status(), 401, "{kind:?}");
+    let r = user
+        .post(format!("{base}/api/v1/submissions"))
+        .header("Origin", ours.as_str())
+        .header("X-CSRF-Token", user_csrf.as_str())
+        .multipart(form())
+        .send()
+        .expect("answered");
+    assert_eq!(r.status(), 202, "{kind:?}");
+}
+both_databases!(api_takes_cookies_only_with_csrf_and_origin);
+
+/// To anyone but an administrator, the admin routes answer like a path that does not exist,
+/// whatever the method or body.
+fn admin_routes_do_not_exist_for_others(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "adminhidden");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let base = &server.base;
+    let missing = client()
+        .get(format!("{base}/no/such/page"))
+        .send()
+        .expect("answered")
+        .text()
+        .expect("body");
+    let paths = [
+        "/api/v1/admin/submissions/1/hide",
+        "/api/v1/admin/submissions/x/hide",
+        "/api/v1/admin/datasets",
+        "/api/v1/admin/datasets/synthA/retire",
+        "/api/v1/admin/audit",
+        "/admin/submissions/1/hide",
+        "/admin/datasets",
+        "/admin/datasets/synthA/retire",
+    ];
+    for token in ["", server.token.as_str()] {
+        for path in paths {
+            for method in ["GET", "POST", "PUT", "DELETE", "PATCH"] {
+                let mut r = client()
+                    .request(method.parse().expect("method"), format!("{base}{path}"))
+                    .header("Content-Type", "application/json")
+                    .body("{");
+                if !token.is_empty() {
+                    r = r.bearer_auth(token);
+                }
+                let r = r.send().expect("answered");
+                assert_eq!(r.status(), 404, "{kind:?}: {method} {path}");
+                assert_eq!(
+                    r.text().expect("body"),
+                    missing,
+                    "{kind:?}: {method} {path}"
+                );
+            }
+        }
+    }
+}
+both_databases!(admin_routes_do_not_exist_for_others);
