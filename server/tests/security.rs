@@ -345,3 +345,43 @@ fn admin_routes_do_not_exist_for_others(kind: Db) {
     }
 }
 both_databases!(admin_routes_do_not_exist_for_others);
+
+/// `next` is followed only as a path of this site: tricks browsers resolve to another host,
+/// or characters no header may hold, send the browser to its account page instead.
+fn next_stays_on_this_site(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "next");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let base = &server.base;
+    browser(&server, "nina");
+    let page = client()
+        .get(format!("{base}/login?next=/%09/evil.example"))
+        .send()
+        .expect("answered")
+        .text()
+        .expect("html");
+    assert!(!page.contains("evil.example"), "{kind:?}");
+    let local = from("127.0.0.1");
+    for (next, to) in [
+        ("/\t/evil.example", "/account"),
+        ("/\n/evil.example", "/account"),
+        ("/\\evil.example", "/account"),
+        ("//evil.example", "/account"),
+        ("https://evil.example/", "/account"),
+        ("/submissions/3?x=1", "/submissions/3?x=1"),
+    ] {
+        let r = local
+            .post(format!("{base}/login"))
+            .form(&[
+                ("name", "nina"),
+                ("password", "correct horse battery"),
+                ("next", next),
+            ])
+            .send()
+            .expect("login answered");
+        assert_eq!(r.status(), 303, "{kind:?}: next {next:?}");
+        assert_eq!(r.headers()["location"], to, "{kind:?}: next {next:?}");
+    }
+}
+both_databases!(next_stays_on_this_site);

@@ -44,10 +44,19 @@ struct NextQuery {
     next: Option<String>,
 }
 
-/// Only local paths are followed after signing in (no open redirect).
+/// Only paths of this site are followed after signing in (no open redirect): one leading `/`
+/// not followed by another or by a backslash (`//host` and `/\host` name another host), and only
+/// visible ASCII, so no backslash, space or control character (browsers drop tabs and newlines,
+/// turning `/\t/host` into `//host`) and nothing a `Location` header cannot hold.
 fn safe_next(next: Option<&str>) -> String {
     match next {
-        Some(n) if n.starts_with('/') && !n.starts_with("//") && !n.contains('\\') => n.to_string(),
+        Some(n)
+            if n.starts_with('/')
+                && !n.starts_with("//")
+                && n.bytes().all(|b| b.is_ascii_graphic() && b != b'\\') =>
+        {
+            n.to_string()
+        }
         _ => "/account".to_string(),
     }
 }
