@@ -385,3 +385,44 @@ fn next_stays_on_this_site(kind: Db) {
     }
 }
 both_databases!(next_stays_on_this_site);
+
+/// Every answer (pages, errors, JSON, static files) forbids framing, sniffing, inline scripts
+/// and styles, and leaking its address to other sites.
+#[test]
+fn every_response_carries_security_headers() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(Db::Sqlite, "headers");
+    let server = start(&dir.path().join("data"), &datasets, &db, &[]);
+    let base = &server.base;
+    let answers = [
+        client().get(format!("{base}/")).send(),
+        client().get(format!("{base}/no/such/page")).send(),
+        client().get(format!("{base}/api/v1/datasets")).send(),
+        client()
+            .get(format!("{base}/api/v1/submissions/999"))
+            .send(),
+        client().get(format!("{base}/static/style.css")).send(),
+        client().post(format!("{base}/api/v1/submissions")).send(),
+    ];
+    for r in answers {
+        let r = r.expect("answered");
+        let h = r.headers();
+        let what = format!("{} {}", r.url(), r.status());
+        let csp = h["content-security-policy"].to_str().expect("ascii");
+        for part in [
+            "default-src 'self'",
+            "script-src 'self'",
+            "style-src 'self'",
+            "frame-ancestors 'none'",
+            "object-src 'none'",
+            "base-uri 'none'",
+        ] {
+            assert!(csp.contains(part), "{what}: {csp}");
+        }
+        assert!(!csp.contains("unsafe-inline"), "{what}: {csp}");
+        assert_eq!(h["x-content-type-options"], "nosniff", "{what}");
+        assert_eq!(h["referrer-policy"], "same-origin", "{what}");
+        assert_eq!(h["x-frame-options"], "DENY", "{what}");
+    }
+}
