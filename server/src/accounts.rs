@@ -4,6 +4,7 @@
 //! are 256-bit random, so a fast hash is enough and argon2 per request would be too slow).
 
 use std::net::IpAddr;
+use std::sync::LazyLock;
 
 use argon2::{Argon2, PasswordHash, PasswordHasher, PasswordVerifier};
 use rand::RngCore;
@@ -12,7 +13,7 @@ use sha2::{Digest, Sha256};
 use crate::clock::now_ms;
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
-use crate::store::accounts::User;
+use crate::store::accounts::{Counter, User};
 use crate::store::{Store, StoreError};
 
 /// Personal tokens carry a prefix so that leaked ones are easy to recognise.
@@ -38,41 +39,196 @@ pub fn same_secret(a: &str, b: &str) -> bool {
             == 0
 }
 
-/// An argon2id hash; slow on purpose, so it runs on the blocking pool.
+/// Argon2 takes ~19 MiB and tens of milliseconds per hash: they run one at a time, however many
+/// sign-ups and sign-ins arrive together, and the others wait their turn (after their attempt
+/// was counted against the limits). One, not a few: the allocator holds on to the memory of
+/// earlier hashes (about 7 of them, per thread that ran one), so memory grows with every extra
+/// hashing thread (measured, 50 parallel sign-ups: 885 MB peak unbounded, ~500 MB with 2 hashes
+/// at a time on the blocking pool, 357 MB on 2 threads of their own, under 300 MB on one).
+const PARALLEL_HASHES: usize = 1;
+
+/// The threads hashing runs on, of their own rather than the blocking pool's, whose many threads
+/// would each hold such memory.
+static HASHING: LazyLock<rayon::ThreadPool> = LazyLock::new(|| {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(PARALLEL_HASHES)
+        .thread_name(|i| format!("password-hashing-{i}"))
+        .build()
+        .expect("password hashing threads start")
+});
+
+/// Runs password hashing work on its own thread, in turn.
+async fn hashing<T: Send + 'static>(work: impl FnOnce() -> T + Send + 'static) -> AppResult<T> {
+    let (done, result) = tokio::sync::oneshot::channel();
+    HASHING.spawn(move || {
+        // The requester may have gone away; then nobody needs the answer.
+        let _ = done.send(work());
+    });
+    result
+        .await
+        .map_err(|_| AppError::Internal("password hashing stopped".into()))
+}
+
+/// An argon2id hash; slow on purpose.
 pub async fn hash_password(password: &Password) -> AppResult<String> {
     let password = password.clone();
-    tokio::task::spawn_blocking(move || {
+    hashing(move || {
         Argon2::default()
             .hash_password(password.expose().as_bytes())
             .map(|h| h.to_string())
             .map_err(|e| AppError::Internal(format!("password hashing failed: {e}")))
     })
-    .await
-    .map_err(|e| AppError::Internal(e.to_string()))?
+    .await?
 }
 
-/// Checks a password against a stored hash, on the blocking pool.
-pub async fn verify_password(password: &str, stored: &str) -> AppResult<bool> {
-    let (password, stored) = (password.to_string(), stored.to_string());
-    tokio::task::spawn_blocking(move || {
-        PasswordHash::new(&stored).is_ok_and(|h| {
+/// What unknown names are checked against: a hash made like every real one (same algorithm and
+/// parameters) of a random secret, so an unknown name costs the same work and time as a known
+/// one with a wrong password, and the answer's timing does not tell which names exist.
+static DUMMY_HASH: LazyLock<String> = LazyLock::new(|| {
+    Argon2::default()
+        .hash_password(new_secret().as_bytes())
+        .map(|h| h.to_string())
+        .expect("argon2 hashes a random secret")
+});
+
+/// Checks a password against a stored hash (against [`DUMMY_HASH`] when there is none, which
+/// no password matches).
+pub async fn verify_password(password: &str, stored: Option<&str>) -> AppResult<bool> {
+    let (password, stored) = (password.to_string(), stored.map(str::to_string));
+    hashing(move || {
+        let known = stored.is_some();
+        let stored = stored.unwrap_or_else(|| DUMMY_HASH.clone());
+        let matches = PasswordHash::new(&stored).is_ok_and(|h| {
             Argon2::default()
                 .verify_password(password.as_bytes(), &h)
                 .is_ok()
-        })
+        });
+        known && matches
     })
     .await
-    .map_err(|e| AppError::Internal(e.to_string()))
 }
 
-/// Sign-in attempts allowed per account, and per address, within `LOGIN_WINDOW_MS`.
-const LOGIN_FAILURES_PER_ACCOUNT: usize = 5;
-const LOGIN_FAILURES_PER_ADDRESS: usize = 20;
-const LOGIN_WINDOW_MS: i64 = 15 * 60 * 1000;
+/// A fixed window: at most `max` attempts per `ms`.
+struct Window {
+    max: i64,
+    ms: i64,
+}
+
+/// Sign-in attempts per address (successful ones are given back).
+const SIGN_IN_PER_ADDRESS: Window = Window {
+    max: 20,
+    ms: 15 * 60 * 1000,
+};
+/// New accounts per address.
+const REGISTER_PER_ADDRESS: Window = Window {
+    max: 5,
+    ms: 3600 * 1000,
+};
+/// Failed sign-ins an account takes, from addresses it has never signed in from, before each
+/// further attempt waits: `ACCOUNT_FIRST_DELAY_MS`, doubling up to `ACCOUNT_MAX_DELAY_MS`. A
+/// delay, not a lock: the owner, from an address of an earlier sign-in, does not wait at all.
+const ACCOUNT_FREE_FAILURES: i64 = 5;
+const ACCOUNT_FIRST_DELAY_MS: i64 = 30 * 1000;
+const ACCOUNT_MAX_DELAY_MS: i64 = 15 * 60 * 1000;
+/// An account's failures are forgotten a day after the last one.
+const ACCOUNT_MEMORY_MS: i64 = 24 * 3600 * 1000;
+/// Reads and compare-and-sets of one counter before a request gives up.
+const COUNTER_TRIES: usize = 8;
+
+fn too_many(retry_at: i64) -> AppError {
+    AppError::TooMany {
+        message: "too many attempts: wait a few minutes and try again".into(),
+        retry_at,
+    }
+}
+
+/// Counts one attempt against `key`, before any work is done for it. `step` turns the counter
+/// (none yet, at `now`) into the counter with this attempt counted, or refuses with the time the
+/// next attempt is allowed. The counter moves by compare-and-set, so of parallel attempts each
+/// is counted exactly once and none passes a limit.
+async fn count_attempt(
+    store: &Store,
+    key: &str,
+    step: impl Fn(Option<Counter>, i64) -> Result<Counter, i64>,
+) -> AppResult<()> {
+    for _ in 0..COUNTER_TRIES {
+        let seen = store.counter(key).await?;
+        let new = step(seen, now_ms()).map_err(too_many)?;
+        if store.swap_counter(key, seen.as_ref(), &new).await? {
+            return Ok(());
+        }
+    }
+    // Contended on every try: a burst that busy is over any limit.
+    Err(too_many(now_ms() + 1000))
+}
+
+/// Gives back one attempt of a window (a successful sign-in is not held against its address).
+async fn give_back(store: &Store, key: &str) -> AppResult<()> {
+    for _ in 0..COUNTER_TRIES {
+        let Some(seen) = store.counter(key).await?.filter(|c| c.attempts > 0) else {
+            return Ok(());
+        };
+        let new = Counter {
+            attempts: seen.attempts - 1,
+            ..seen
+        };
+        if store.swap_counter(key, Some(&seen), &new).await? {
+            return Ok(());
+        }
+    }
+    Ok(())
+}
+
+fn window_step(window: Window) -> impl Fn(Option<Counter>, i64) -> Result<Counter, i64> {
+    move |seen, now| match seen {
+        Some(c) if now < c.since + window.ms && c.attempts >= window.max => {
+            Err(c.since + window.ms)
+        }
+        Some(c) if now < c.since + window.ms => Ok(Counter {
+            attempts: c.attempts + 1,
+            ..c
+        }),
+        _ => Ok(Counter {
+            attempts: 1,
+            since: now,
+            next_at: now + window.ms,
+        }),
+    }
+}
+
+/// The wait after an account's `failures`-th failed sign-in.
+fn account_delay(failures: i64) -> i64 {
+    if failures < ACCOUNT_FREE_FAILURES {
+        0
+    } else {
+        let doublings = (failures - ACCOUNT_FREE_FAILURES).min(20) as u32;
+        (ACCOUNT_FIRST_DELAY_MS << doublings).min(ACCOUNT_MAX_DELAY_MS)
+    }
+}
+
+/// An account's counter: attempts, the last one's time (`since`), and when the next is allowed.
+fn account_step(seen: Option<Counter>, now: i64) -> Result<Counter, i64> {
+    let attempts = match seen {
+        Some(c) if now < c.since + ACCOUNT_MEMORY_MS => {
+            if now < c.next_at {
+                return Err(c.next_at);
+            }
+            c.attempts + 1
+        }
+        _ => 1,
+    };
+    Ok(Counter {
+        attempts,
+        since: now,
+        next_at: now + account_delay(attempts),
+    })
+}
 
 /// Signs in with a name and a password from `addr`: the user, or `None` for an unknown name or
-/// a wrong password (recorded against the account and the address). While either has failed
-/// too often recently, the answer is `TooMany` before any password is checked.
+/// a wrong password. Every attempt is counted before any password is checked, first against
+/// the address (a fixed window), then, unless the account has signed in from this address
+/// before, against the account (growing delays); over either, the answer is `TooMany`. An
+/// unknown name takes the same steps, a password check included, as a known one.
 pub async fn sign_in(
     store: &Store,
     name: &str,
@@ -80,33 +236,28 @@ pub async fn sign_in(
     addr: IpAddr,
 ) -> AppResult<Option<User>> {
     let name = name.trim();
-    let account_key = format!("user:{name}");
-    let keys = [
-        (account_key.clone(), LOGIN_FAILURES_PER_ACCOUNT),
-        (format!("addr:{addr}"), LOGIN_FAILURES_PER_ADDRESS),
-    ];
-    let since = now_ms() - LOGIN_WINDOW_MS;
-    for (key, limit) in &keys {
-        let failures = store.login_failures(key, since).await?;
-        if failures.len() >= *limit {
-            return Err(AppError::TooMany {
-                message: "too many failed sign-ins: wait a few minutes and try again".into(),
-                retry_at: failures[failures.len() - limit] + LOGIN_WINDOW_MS,
-            });
-        }
-    }
-    let verified = match store.user_for_login(name).await? {
-        Some((user, hash)) => verify_password(password, &hash).await?.then_some(user),
-        None => None,
+    let addr = addr.to_string();
+    let addr_key = format!("signin-addr:{addr}");
+    count_attempt(store, &addr_key, window_step(SIGN_IN_PER_ADDRESS)).await?;
+    let account_key = if store.signed_in_from(name, &addr).await? {
+        None
+    } else {
+        Some(format!("signin-user:{name}"))
     };
-    match &verified {
-        Some(_) => store.clear_login_failures(&account_key).await?,
-        None => {
-            let keys: Vec<String> = keys.into_iter().map(|(k, _)| k).collect();
-            store.record_login_failure(&keys).await?;
-        }
+    if let Some(key) = &account_key {
+        count_attempt(store, key, account_step).await?;
     }
-    Ok(verified)
+    let (user, hash) = store.user_for_login(name).await?.unzip();
+    let verified = verify_password(password, hash.as_deref()).await?;
+    let Some(user) = user.filter(|_| verified) else {
+        return Ok(None);
+    };
+    give_back(store, &addr_key).await?;
+    if let Some(key) = &account_key {
+        store.delete_counter(key).await?;
+    }
+    store.remember_sign_in(name, &addr).await?;
+    Ok(Some(user))
 }
 
 /// Creates an account; a taken name is a conflict that says so.
@@ -126,6 +277,23 @@ pub async fn register(
     }
 }
 
+/// Registers from a browser at `addr` (counted against the address's limit before the password
+/// is hashed), which then counts as an address the account signed in from.
+pub async fn sign_up(
+    store: &Store,
+    name: &UserName,
+    password: &Password,
+    addr: IpAddr,
+) -> AppResult<i64> {
+    let key = format!("register:{addr}");
+    count_attempt(store, &key, window_step(REGISTER_PER_ADDRESS)).await?;
+    let id = register(store, name, password, false).await?;
+    store
+        .remember_sign_in(name.as_str(), &addr.to_string())
+        .await?;
+    Ok(id)
+}
+
 /// Mints a personal API token for a user: returned once, only its hash is kept.
 pub async fn create_token(store: &Store, user_id: i64, label: &TokenLabel) -> AppResult<String> {
     let token = format!("{TOKEN_PREFIX}{}", new_secret());
@@ -133,4 +301,40 @@ pub async fn create_token(store: &Store, user_id: i64, label: &TokenLabel) -> Ap
         .create_token(user_id, label, &sha256_hex(&token))
         .await?;
     Ok(token)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An unknown name must cost what a known one costs: its stand-in hash is made with the same
+    /// algorithm and parameters as real ones, is really checked, and matches nothing.
+    #[tokio::test]
+    async fn unknown_names_are_checked_against_a_real_hash() {
+        let real = hash_password(&Password::parse("correct horse battery").unwrap())
+            .await
+            .unwrap();
+        let (real, dummy) = (
+            PasswordHash::new(&real).unwrap(),
+            PasswordHash::new(&DUMMY_HASH).unwrap(),
+        );
+        assert_eq!(real.algorithm, dummy.algorithm);
+        assert_eq!(real.version, dummy.version);
+        assert_eq!(real.params, dummy.params);
+        assert!(
+            !verify_password("correct horse battery", None)
+                .await
+                .unwrap()
+        );
+    }
+
+    #[test]
+    fn account_delays_grow_and_stay_bounded() {
+        let delays: Vec<i64> = (1..=30).map(account_delay).collect();
+        assert!(delays[..4].iter().all(|&d| d == 0));
+        assert_eq!(delays[4], ACCOUNT_FIRST_DELAY_MS);
+        assert_eq!(delays[5], 2 * ACCOUNT_FIRST_DELAY_MS);
+        assert!(delays.windows(2).all(|w| w[0] <= w[1]));
+        assert_eq!(delays[29], ACCOUNT_MAX_DELAY_MS);
+    }
 }

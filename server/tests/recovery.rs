@@ -102,3 +102,47 @@ fn crash_and_resume(kind: Db) {
     );
 }
 both_databases!(crash_and_resume);
+
+/// A `serve` whose port is taken exits before it starts its workers: a queued job is left
+/// alone (not claimed, no attempt spent) for the servers that run.
+fn a_server_that_cannot_bind_claims_no_job(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = common::reference_datasets(dir.path());
+    let db = TestDb::new(kind, "nobind");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    let file = common::fixtures().join("results/noisesmall_synthA-test.csv");
+    let r = upload(&server, "queued", "synthA", &file, None);
+    let id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+    wait_done(&server.base, id, Duration::from_secs(60));
+    drop(server);
+    // The job queued again, with no server running, and its port held by someone else.
+    common::column(
+        &db,
+        &data,
+        "UPDATE submissions SET status = 'queued', attempts = 0, lease_until = NULL",
+    );
+    let holder = std::net::TcpListener::bind("127.0.0.1:0").expect("a port");
+    let taken = holder.local_addr().expect("address").to_string();
+    let mut cmd = Command::new(BIN);
+    cmd.args(["serve", "--bind", &taken, "--workers", "1"])
+        .arg("--data-dir")
+        .arg(&data)
+        .arg("--datasets")
+        .arg(&datasets)
+        .env_remove("DATABASE_URL")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    if let Some(url) = db.url() {
+        cmd.env("DATABASE_URL", url);
+    }
+    let status = cmd.status().expect("serve runs");
+    assert!(!status.success(), "{kind:?}: bound a taken port");
+    let attempts = common::column(
+        &db,
+        &data,
+        "SELECT CAST(attempts AS TEXT) || ' ' || status FROM submissions",
+    );
+    assert_eq!(attempts, ["0 queued"], "{kind:?}");
+}
+both_databases!(a_server_that_cannot_bind_claims_no_job);

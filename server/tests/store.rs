@@ -12,6 +12,7 @@ use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, Report, evaluate, results::load_results};
 use server::domain::{Hardware, MethodName, Modality, TokenLabel, UserName, Visibility};
 use server::preflight::Preflight;
+use server::store::accounts::Counter;
 use server::store::audit::AdminAction;
 use server::store::datasets::DatasetRow;
 use server::store::methods::MethodMeta;
@@ -393,20 +394,39 @@ fn accounts_and_audit(kind: Db) {
         let dup = store.create_token(id, &label, "t-hash").await;
         assert!(matches!(dup, Err(StoreError::Unique { .. })), "{dup:?}");
 
-        store
-            .record_login_failure(&["user:dora".into(), "addr:1".into()])
-            .await
-            .unwrap();
-        assert_eq!(store.login_failures("user:dora", 0).await.unwrap().len(), 1);
-        store.clear_login_failures("user:dora").await.unwrap();
+        // Counters move only from the value last seen: of two writers, one wins.
+        // (Times in the future: counters idle for a day are cleared as new ones come.)
+        let first = Counter {
+            attempts: 1,
+            since: 4_000_000_000_000,
+            next_at: 4_000_000_000_000,
+        };
+        let second = Counter {
+            attempts: 2,
+            ..first
+        };
+        assert!(store.swap_counter("k", None, &first).await.unwrap());
+        assert!(!store.swap_counter("k", None, &first).await.unwrap());
         assert!(
             store
-                .login_failures("user:dora", 0)
+                .swap_counter("k", Some(&first), &second)
                 .await
                 .unwrap()
-                .is_empty()
         );
-        assert_eq!(store.login_failures("addr:1", 0).await.unwrap().len(), 1);
+        assert!(
+            !store
+                .swap_counter("k", Some(&first), &second)
+                .await
+                .unwrap()
+        );
+        assert_eq!(store.counter("k").await.unwrap(), Some(second));
+        store.delete_counter("k").await.unwrap();
+        assert_eq!(store.counter("k").await.unwrap(), None);
+        assert!(!store.signed_in_from("dora", "127.0.0.1").await.unwrap());
+        store.remember_sign_in("dora", "127.0.0.1").await.unwrap();
+        store.remember_sign_in("dora", "127.0.0.1").await.unwrap();
+        assert!(store.signed_in_from("dora", "127.0.0.1").await.unwrap());
+        assert!(!store.signed_in_from("dora", "127.0.0.2").await.unwrap());
 
         store
             .audit(id, AdminAction::Hide, "submission 1")

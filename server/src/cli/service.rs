@@ -61,7 +61,9 @@ fn init_logging() {
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
     init_logging();
     runtime()?.block_on(async move {
-        let bind = args.config.bind;
+        // The port first: a server that cannot have it stops before it touches anything (a
+        // worker started earlier would claim a job and leave it to wait out its lease).
+        let listener = tokio::net::TcpListener::bind(args.config.bind).await?;
         let config = args.config.common;
         let demo = !config.no_demo && config.datasets.is_none();
         if demo {
@@ -72,7 +74,6 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
             crate::demo_setup::ensure_demo_submissions(&app).await?;
         }
         crate::jobs::spawn_workers(&app);
-        let listener = tokio::net::TcpListener::bind(bind).await?;
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");

@@ -44,10 +44,19 @@ struct NextQuery {
     next: Option<String>,
 }
 
-/// Only local paths are followed after signing in (no open redirect).
+/// Only paths of this site are followed after signing in (no open redirect): one leading `/`
+/// not followed by another or by a backslash (`//host` and `/\host` name another host), and only
+/// visible ASCII, so no backslash, space or control character (browsers drop tabs and newlines,
+/// turning `/\t/host` into `//host`) and nothing a `Location` header cannot hold.
 fn safe_next(next: Option<&str>) -> String {
     match next {
-        Some(n) if n.starts_with('/') && !n.starts_with("//") && !n.contains('\\') => n.to_string(),
+        Some(n)
+            if n.starts_with('/')
+                && !n.starts_with("//")
+                && n.bytes().all(|b| b.is_ascii_graphic() && b != b'\\') =>
+        {
+            n.to_string()
+        }
         _ => "/account".to_string(),
     }
 }
@@ -114,6 +123,7 @@ async fn start_session(
 
 async fn register(
     State(app): State<AppState>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
     headers: HeaderMap,
     jar: CookieJar,
     Form(c): Form<Credentials>,
@@ -138,7 +148,7 @@ async fn register(
         Ok(p) => p,
         Err(e) => return refuse(StatusCode::UNPROCESSABLE_ENTITY, e.problem_sentence()),
     };
-    let id = match accounts::register(&app.store, &name, &password, false).await {
+    let id = match accounts::sign_up(&app.store, &name, &password, peer.ip()).await {
         Ok(id) => id,
         Err(AppError::Conflict(msg)) => return refuse(StatusCode::CONFLICT, msg),
         Err(e) => return Err(e),

@@ -1,8 +1,9 @@
 //! What administrators do: hide, delete and re-run submissions, add and retire datasets, from
 //! the API and from buttons on the pages. Every action is written to the audit log. To anyone
-//! else these routes answer as if they did not exist.
+//! else these routes answer as if they did not exist, whatever the method and body.
 
-use axum::extract::{Form, Path, State};
+use axum::extract::{Form, FromRequestParts, Path, Request, State};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
@@ -13,10 +14,11 @@ use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
 use crate::moderation;
+use crate::routes::pages;
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
 
-pub fn router() -> Router<AppState> {
+pub fn router(app: AppState) -> Router<AppState> {
     Router::new()
         .route(
             "/api/v1/admin/submissions/{id}/{action}",
@@ -34,6 +36,24 @@ pub fn router() -> Router<AppState> {
         )
         .route("/admin/datasets", post(page_add_dataset))
         .route("/admin/datasets/{name}/retire", post(page_retire_dataset))
+        .layer(axum::middleware::from_fn_with_state(app, admins_only))
+}
+
+/// Answers everyone but administrators with the page of a path that does not exist, before
+/// the method, path parameters or body are looked at (a 405 or 422 would tell the route is
+/// there). The viewer is kept for the handler.
+async fn admins_only(
+    State(app): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, AppError> {
+    let (mut parts, body) = request.into_parts();
+    let viewer = Viewer::from_request_parts(&mut parts, &app).await?;
+    if admin(&viewer).is_err() {
+        return Ok(pages::not_found().await);
+    }
+    parts.extensions.insert(viewer);
+    Ok(next.run(Request::from_parts(parts, body)).await)
 }
 
 fn admin(viewer: &Viewer) -> AppResult<&User> {

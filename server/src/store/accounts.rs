@@ -193,40 +193,106 @@ impl Store {
     }
 }
 
+/// A rate-limit counter: attempts counted since `since`, and the earliest time the next one is
+/// allowed. What the numbers mean is the caller's policy; the store only keeps them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Counter {
+    pub attempts: i64,
+    pub since: i64,
+    pub next_at: i64,
+}
+
 impl Store {
-    /// Failed sign-ins for `key` since `since`, oldest first.
-    pub async fn login_failures(&self, key: &str, since: i64) -> StoreResult<Vec<i64>> {
-        let rows =
-            sqlx::query("SELECT at FROM login_failures WHERE key = $1 AND at >= $2 ORDER BY at")
-                .bind(key)
-                .bind(since)
-                .fetch_all(&self.pool)
-                .await?;
-        rows.iter().map(|r| Ok(r.try_get("at")?)).collect()
+    /// The counter of `key`, if there is one.
+    pub async fn counter(&self, key: &str) -> StoreResult<Option<Counter>> {
+        let row = sqlx::query("SELECT attempts, since, next_at FROM rate_counters WHERE key = $1")
+            .bind(key)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| {
+            Ok(Counter {
+                attempts: r.try_get("attempts")?,
+                since: r.try_get("since")?,
+                next_at: r.try_get("next_at")?,
+            })
+        })
+        .transpose()
     }
 
-    pub async fn record_login_failure(&self, keys: &[String]) -> StoreResult<()> {
-        let now = now_ms();
-        for key in keys {
-            sqlx::query("INSERT INTO login_failures (key, at) VALUES ($1, $2)")
+    /// Sets the counter of `key` to `new` only if it still is `seen` (`None`: no counter yet):
+    /// false when another request changed it first. One statement each way, so of parallel
+    /// requests that read the same counter exactly one moves it on, on both databases.
+    pub async fn swap_counter(
+        &self,
+        key: &str,
+        seen: Option<&Counter>,
+        new: &Counter,
+    ) -> StoreResult<bool> {
+        let done = match seen {
+            None => {
+                // Counters untouched for a day are past every window: dropped as new ones come.
+                sqlx::query("DELETE FROM rate_counters WHERE since < $1 AND next_at < $1")
+                    .bind(now_ms() - 24 * 3600 * 1000)
+                    .execute(&self.pool)
+                    .await?;
+                sqlx::query(
+                    "INSERT INTO rate_counters (key, attempts, since, next_at) \
+                     VALUES ($1, $2, $3, $4) ON CONFLICT (key) DO NOTHING",
+                )
                 .bind(key)
-                .bind(now)
+                .bind(new.attempts)
+                .bind(new.since)
+                .bind(new.next_at)
                 .execute(&self.pool)
-                .await?;
-        }
-        // Old rows are of no further use.
-        sqlx::query("DELETE FROM login_failures WHERE at < $1")
-            .bind(now - 24 * 3600 * 1000)
+                .await?
+            }
+            Some(old) => {
+                sqlx::query(
+                    "UPDATE rate_counters SET attempts = $1, since = $2, next_at = $3 \
+                     WHERE key = $4 AND attempts = $5 AND since = $6 AND next_at = $7",
+                )
+                .bind(new.attempts)
+                .bind(new.since)
+                .bind(new.next_at)
+                .bind(key)
+                .bind(old.attempts)
+                .bind(old.since)
+                .bind(old.next_at)
+                .execute(&self.pool)
+                .await?
+            }
+        };
+        Ok(done.rows_affected() == 1)
+    }
+
+    pub async fn delete_counter(&self, key: &str) -> StoreResult<()> {
+        sqlx::query("DELETE FROM rate_counters WHERE key = $1")
+            .bind(key)
             .execute(&self.pool)
             .await?;
         Ok(())
     }
 
-    pub async fn clear_login_failures(&self, key: &str) -> StoreResult<()> {
-        sqlx::query("DELETE FROM login_failures WHERE key = $1")
-            .bind(key)
-            .execute(&self.pool)
+    /// Whether the account `name` has signed in (or registered) from `addr`.
+    pub async fn signed_in_from(&self, name: &str, addr: &str) -> StoreResult<bool> {
+        let row = sqlx::query("SELECT at FROM sign_in_addresses WHERE name = $1 AND addr = $2")
+            .bind(name)
+            .bind(addr)
+            .fetch_optional(&self.pool)
             .await?;
+        Ok(row.is_some())
+    }
+
+    pub async fn remember_sign_in(&self, name: &str, addr: &str) -> StoreResult<()> {
+        sqlx::query(
+            "INSERT INTO sign_in_addresses (name, addr, at) VALUES ($1, $2, $3) \
+             ON CONFLICT (name, addr) DO UPDATE SET at = excluded.at",
+        )
+        .bind(name)
+        .bind(addr)
+        .bind(now_ms())
+        .execute(&self.pool)
+        .await?;
         Ok(())
     }
 }
