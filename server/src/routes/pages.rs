@@ -75,6 +75,12 @@ pub(crate) mod filters {
             .map_or("–".to_string(), |v| format!("{v:.3}")))
     }
 
+    /// A dataset as BOP shows it (`tless` -> `T-LESS`).
+    #[askama::filter_fn]
+    pub fn dataset_name(name: &str, _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(evaluator::dataset::display_name(name).to_string())
+    }
+
     #[askama::filter_fn]
     pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
         let secs = ms / 1000;
