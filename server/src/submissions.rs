@@ -142,14 +142,16 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Ac
         });
     }
 
+    let what = Described {
+        method: &method,
+        meta: &meta,
+        protocols: &protocols,
+        visibility,
+        hardware: &hardware,
+    };
     let mut accepted = Vec::with_capacity(checked.len());
     for c in checked {
-        accepted.push(
-            store(
-                app, owner, &method, &meta, &protocols, visibility, &hardware, c,
-            )
-            .await?,
-        );
+        accepted.push(store(app, owner, &what, c).await?);
     }
     Ok(accepted)
 }
@@ -255,18 +257,29 @@ async fn check(
     })
 }
 
+/// What every file of one upload shares.
+struct Described<'a> {
+    method: &'a MethodName,
+    meta: &'a MethodMeta,
+    protocols: &'a [ProtocolName],
+    visibility: Visibility,
+    hardware: &'a Hardware,
+}
+
 /// Stores and queues one checked file.
-#[allow(clippy::too_many_arguments)]
 async fn store(
     app: &App,
     owner: &User,
-    method: &MethodName,
-    meta: &MethodMeta,
-    protocols: &[ProtocolName],
-    visibility: Visibility,
-    hardware: &Hardware,
+    what: &Described<'_>,
     checked: Checked,
 ) -> AppResult<Accepted> {
+    let Described {
+        method,
+        meta,
+        protocols,
+        visibility,
+        hardware,
+    } = *what;
     let Checked {
         file,
         dataset_id,

@@ -261,7 +261,7 @@ fn serves_the_core_datasets(kind: Db) {
     let r = upload_files(
         &server,
         &[("method", "named"), ("protocol", "bop19")],
-        &[tless_file.clone()],
+        std::slice::from_ref(&tless_file),
     );
     assert_eq!(r.status(), 202, "{kind:?}");
     let body: Value = r.json().expect("json");
