@@ -149,6 +149,11 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
                         );
                     };
                     write_core_miniature(&dir, layout, &opts)?;
+                    let (w, h) = layout.published_size;
+                    println!(
+                        "laid out as {name} is published, except the image size: {w} x {h} there, \
+                         the synthetic 640 x 480 here"
+                    );
                 }
             }
             println!("wrote a synthetic BOP dataset to {}", dir.display());
