@@ -17,6 +17,39 @@ use crate::math::{Intrinsics, Pose};
 use crate::mesh::Mesh;
 use crate::ply::read_ply;
 
+/// The BOP datasets by the names BOP uses for their folders and result files, with the names
+/// the BOP site and papers show.
+pub const BOP_DATASETS: &[(&str, &str)] = &[
+    ("lm", "LM"),
+    ("lmo", "LM-O"),
+    ("tless", "T-LESS"),
+    ("tudl", "TUD-L"),
+    ("tyol", "TYO-L"),
+    ("ruapc", "RU-APC"),
+    ("icmi", "IC-MI"),
+    ("icbin", "IC-BIN"),
+    ("itodd", "ITODD"),
+    ("itoddmv", "ITODD-MV"),
+    ("hb", "HB"),
+    ("hbs", "HB"),
+    ("ycbv", "YCB-V"),
+    ("hope", "HOPE"),
+    ("hopev2", "HOPEv2"),
+    ("hot3d", "HOT3D"),
+    ("handal", "HANDAL"),
+    ("ipd", "IPD"),
+    ("xyzibd", "XYZ-IBD"),
+];
+
+/// How a dataset is shown: BOP's display name for a BOP dataset (`tless` -> `T-LESS`), the
+/// name itself for any other.
+pub fn display_name(name: &str) -> &str {
+    BOP_DATASETS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or(name, |(_, display)| display)
+}
+
 /// A continuous rotational symmetry about `axis` through the point `offset` (model frame, mm).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ContinuousSymmetry {
@@ -79,9 +112,16 @@ pub struct Target {
 }
 
 /// Which split and targets file to read; BOP'19 evaluates `test` with `test_targets_bop19.json`.
+///
+/// BOP publishes a split in the folder `{split}` or, for datasets recorded with several sensors
+/// (T-LESS and HB: `test_primesense`), `{split}_{split_type}`, with the camera file
+/// `camera_{split_type}.json`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DatasetOptions {
     pub split: String,
+    /// `None`: found from the folders, which works when exactly one of `{split}` and
+    /// `{split}_*` exists.
+    pub split_type: Option<String>,
     pub targets_file: String,
 }
 
@@ -89,6 +129,7 @@ impl Default for DatasetOptions {
     fn default() -> Self {
         DatasetOptions {
             split: "test".to_string(),
+            split_type: None,
             targets_file: "test_targets_bop19.json".to_string(),
         }
     }
@@ -100,6 +141,8 @@ pub struct Dataset {
     pub name: String,
     pub root: PathBuf,
     pub split_dir: PathBuf,
+    /// The split type the split folder was found with (`primesense` for `test_primesense`).
+    pub split_type: Option<String>,
     pub objects: BTreeMap<u32, Object>,
     pub scenes: BTreeMap<u32, Scene>,
     /// In the order of the targets file.
@@ -118,26 +161,21 @@ pub struct DepthImage {
 }
 
 impl Dataset {
-    /// Loads the `test` split with `test_targets_bop19.json`.
+    /// Loads the `test` split (of the one split type there is) with `test_targets_bop19.json`.
     pub fn load(root: &Path) -> Result<Dataset> {
         Dataset::load_with(root, &DatasetOptions::default())
     }
 
     pub fn load_with(root: &Path, opts: &DatasetOptions) -> Result<Dataset> {
-        let split_dir = root.join(&opts.split);
-        let targets_path = root.join(&opts.targets_file);
-        let targets: Vec<Target> = read_json::<Vec<RawTarget>>(&targets_path)?
-            .into_iter()
-            .map(|t| Target {
-                scene_id: t.scene_id,
-                im_id: t.im_id,
-                obj_id: t.obj_id,
-                inst_count: t.inst_count,
-            })
-            .collect();
-        if targets.is_empty() {
-            return Err(Error::format(&targets_path, "the file lists no targets"));
+        if !root.is_dir() {
+            return Err(Error::format(
+                root,
+                "no such folder: expected a BOP dataset folder",
+            ));
         }
+        let (split_dir, split_type) = find_split(root, opts)?;
+        let targets_path = root.join(&opts.targets_file);
+        let targets = load_targets(&targets_path)?;
 
         let models_dir = [root.join("models_eval"), root.join("models")]
             .into_iter()
@@ -203,6 +241,7 @@ impl Dataset {
             name,
             root: root.to_path_buf(),
             split_dir,
+            split_type,
             objects,
             scenes,
             targets,
@@ -235,21 +274,26 @@ impl Dataset {
         read_depth_png(&path, image.depth_scale as f32)
     }
 
-    /// The camera files state the sensor size; only datasets without them fall back to the
-    /// size of a depth image.
+    /// The camera files state the sensor size: the split type's (`camera_primesense.json`)
+    /// first, then `camera.json`, then any other (YCB-V has only `camera_uw.json` and
+    /// `camera_cmu.json`); only datasets without them fall back to the size of a depth image.
     fn find_image_size(&self) -> Result<(u32, u32)> {
         let mut candidates = Vec::new();
-        let main = self.root.join("camera.json");
-        if main.is_file() {
-            candidates.push(main);
+        if let Some(t) = &self.split_type {
+            candidates.push(self.root.join(format!("camera_{t}.json")));
         }
+        candidates.push(self.root.join("camera.json"));
+        candidates.retain(|p| p.is_file());
         let entries = std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))?;
         let mut others = Vec::new();
         for entry in entries {
             let entry = entry.map_err(|e| Error::io(&self.root, e))?;
             let name = entry.file_name();
             let name = name.to_string_lossy();
-            if name.starts_with("camera") && name.ends_with(".json") && name != "camera.json" {
+            if name.starts_with("camera")
+                && name.ends_with(".json")
+                && !candidates.contains(&entry.path())
+            {
                 others.push(entry.path());
             }
         }
@@ -269,6 +313,102 @@ impl Dataset {
     }
 }
 
+/// The split folder: `{split}_{split_type}` when a type is chosen, otherwise the one folder
+/// among `{split}` and `{split}_*` (BOP ships some datasets with one sensor per split type).
+fn find_split(root: &Path, opts: &DatasetOptions) -> Result<(PathBuf, Option<String>)> {
+    let split = &opts.split;
+    if let Some(t) = &opts.split_type {
+        let dir = root.join(format!("{split}_{t}"));
+        if !dir.is_dir() {
+            return Err(Error::format(
+                &dir,
+                format!("no such folder: expected the split `{split}` of split type `{t}` here"),
+            ));
+        }
+        return Ok((dir, Some(t.clone())));
+    }
+    let mut candidates: Vec<(PathBuf, Option<String>)> = Vec::new();
+    if root.join(split).is_dir() {
+        candidates.push((root.join(split), None));
+    }
+    let prefix = format!("{split}_");
+    let entries = std::fs::read_dir(root).map_err(|e| Error::io(root, e))?;
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(root, e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(t) = name.strip_prefix(&prefix)
+            && !t.is_empty()
+            && entry.path().is_dir()
+        {
+            candidates.push((entry.path(), Some(t.to_string())));
+        }
+    }
+    candidates.sort();
+    match candidates.len() {
+        1 => Ok(candidates.remove(0)),
+        0 => Err(Error::format(
+            root,
+            format!(
+                "no split folder: expected `{split}/` or `{split}_TYPE/` (as T-LESS's \
+                 `test_primesense/`)"
+            ),
+        )),
+        _ => {
+            let names: Vec<String> = candidates
+                .iter()
+                .map(|(p, _)| {
+                    p.file_name()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned()
+                })
+                .collect();
+            Err(Error::format(
+                root,
+                format!(
+                    "several folders hold the split `{split}` ({}): choose the split type",
+                    names.join(", ")
+                ),
+            ))
+        }
+    }
+}
+
+/// The targets of a localization protocol: one entry per image and object with the number of
+/// instances. BOP'24's `test_targets_bop24.json` of the 6D detection task lists images only,
+/// which bop_toolkit refuses for localization as well.
+fn load_targets(path: &Path) -> Result<Vec<Target>> {
+    if !path.is_file() {
+        return Err(Error::format(
+            path,
+            "no such file: expected the list of test targets (BOP: test_targets_bop19.json)",
+        ));
+    }
+    let raw = read_json::<Vec<RawTarget>>(path)?;
+    if raw.is_empty() {
+        return Err(Error::format(path, "the file lists no targets"));
+    }
+    raw.into_iter()
+        .enumerate()
+        .map(|(n, t)| match (t.obj_id, t.inst_count) {
+            (Some(obj_id), Some(inst_count)) => Ok(Target {
+                scene_id: t.scene_id,
+                im_id: t.im_id,
+                obj_id,
+                inst_count,
+            }),
+            _ => Err(Error::format(
+                path,
+                format!(
+                    "target {n} has no obj_id and inst_count: a list of images (BOP'24 \
+                     detection targets) cannot be evaluated per object; expected targets as \
+                     in test_targets_bop19.json"
+                ),
+            )),
+        })
+        .collect()
+}
+
 fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
     split_dir.join(format!("{scene_id:06}"))
 }
@@ -277,8 +417,8 @@ fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
 struct RawTarget {
     scene_id: u32,
     im_id: u32,
-    obj_id: u32,
-    inst_count: u32,
+    obj_id: Option<u32>,
+    inst_count: Option<u32>,
 }
 
 #[derive(Deserialize)]
@@ -859,12 +999,102 @@ mod tests {
         .unwrap();
         let opts = DatasetOptions {
             split: "val".to_string(),
+            split_type: None,
             targets_file: "val_targets.json".to_string(),
         };
         let d = Dataset::load_with(&root, &opts).unwrap();
         assert_eq!(d.name, "synthA");
         assert_eq!(d.scenes.keys().copied().collect::<Vec<_>>(), [2]);
         assert_eq!(d.depth_path(2, 3), root.join("val/000002/depth/000003.png"));
-        assert!(matches!(Dataset::load(&root), Err(Error::Io { .. })));
+        let msg = Dataset::load(&root).unwrap_err().to_string();
+        assert!(
+            msg.contains("no split folder: expected `test/` or `test_TYPE/`"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn bop_names_are_displayed_as_bop_shows_them() {
+        assert_eq!(display_name("lmo"), "LM-O");
+        assert_eq!(display_name("tless"), "T-LESS");
+        assert_eq!(display_name("ycbv"), "YCB-V");
+        assert_eq!(display_name("synthdemo"), "synthdemo");
+    }
+
+    #[test]
+    fn split_type_is_found_when_there_is_one() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        std::fs::rename(root.join("test"), root.join("test_primesense")).unwrap();
+        std::fs::rename(
+            root.join("camera.json"),
+            root.join("camera_primesense.json"),
+        )
+        .unwrap();
+        std::fs::write(
+            root.join("camera_kinect.json"),
+            r#"{"width": 9, "height": 9}"#,
+        )
+        .unwrap();
+        let d = Dataset::load(&root).unwrap();
+        assert_eq!(d.split_type.as_deref(), Some("primesense"));
+        assert_eq!(d.split_dir, root.join("test_primesense"));
+        // The split type's camera file states the size, not the alphabetically first one.
+        assert_eq!(d.image_size, (640, 480));
+        assert_eq!(d.targets, reference().targets);
+
+        std::fs::create_dir(root.join("test_kinect")).unwrap();
+        let msg = Dataset::load(&root).unwrap_err().to_string();
+        assert!(
+            msg.contains("several folders hold the split `test` (test_kinect, test_primesense)"),
+            "{msg}"
+        );
+        let chosen = DatasetOptions {
+            split_type: Some("primesense".into()),
+            ..DatasetOptions::default()
+        };
+        assert_eq!(
+            Dataset::load_with(&root, &chosen).unwrap().targets.len(),
+            28
+        );
+        let missing = DatasetOptions {
+            split_type: Some("canon".into()),
+            ..DatasetOptions::default()
+        };
+        let msg = Dataset::load_with(&root, &missing).unwrap_err().to_string();
+        assert!(
+            msg.contains(
+                "test_canon: no such folder: expected the split `test` of split type `canon`"
+            ),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn targets_file_problems_are_named() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        std::fs::write(
+            root.join("test_targets_bop24.json"),
+            r#"[{"scene_id": 1, "im_id": 0}]"#,
+        )
+        .unwrap();
+        let bop24 = DatasetOptions {
+            targets_file: "test_targets_bop24.json".into(),
+            ..DatasetOptions::default()
+        };
+        let msg = Dataset::load_with(&root, &bop24).unwrap_err().to_string();
+        assert!(
+            msg.contains("test_targets_bop24.json: target 0 has no obj_id and inst_count"),
+            "{msg}"
+        );
+        std::fs::remove_file(root.join("test_targets_bop19.json")).unwrap();
+        let msg = Dataset::load(&root).unwrap_err().to_string();
+        assert!(
+            msg.contains(
+                "test_targets_bop19.json: no such file: expected the list of test targets"
+            ),
+            "{msg}"
+        );
     }
 }

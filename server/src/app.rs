@@ -9,6 +9,7 @@ use evaluator::Dataset;
 use tokio::sync::{Mutex, Notify};
 
 use crate::config::Config;
+use crate::dataset_config::{folder_options, is_dataset_folder};
 use crate::error::{AppError, AppResult};
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
@@ -48,7 +49,8 @@ impl App {
         Ok(app)
     }
 
-    /// Every subfolder of the datasets directory that loads as a BOP dataset is registered;
+    /// Every subfolder of the datasets directory that loads as a BOP dataset is registered
+    /// (one with its targets file, or with a `poseboard-dataset.json` choosing its split);
     /// one an administrator retired stays retired.
     async fn register_datasets(&self) -> anyhow::Result<()> {
         let dir = self.config.datasets_dir();
@@ -59,7 +61,7 @@ impl App {
         let mut folders: Vec<PathBuf> = entries
             .filter_map(|e| e.ok())
             .map(|e| e.path())
-            .filter(|p| p.join("test_targets_bop19.json").is_file())
+            .filter(|p| is_dataset_folder(p))
             .collect();
         folders.sort();
         for folder in folders {
@@ -81,7 +83,7 @@ impl App {
     /// Loads the BOP dataset in `folder` and registers it (a retired one stays retired).
     pub async fn register_dataset(&self, folder: &Path) -> AppResult<DatasetRow> {
         let path = folder.to_path_buf();
-        let ds = tokio::task::spawn_blocking(move || Dataset::load(&path))
+        let ds = tokio::task::spawn_blocking(move || load(&path))
             .await
             .map_err(|e| AppError::Internal(e.to_string()))?
             .map_err(|e| AppError::BadRequest(format!("not a usable BOP dataset: {e}")))?;
@@ -96,7 +98,7 @@ impl App {
             return Ok(ds.clone());
         }
         let path = PathBuf::from(&row.path);
-        let ds = tokio::task::spawn_blocking(move || Dataset::load(&path))
+        let ds = tokio::task::spawn_blocking(move || load(&path))
             .await
             .map_err(|e| AppError::Internal(e.to_string()))?
             .map_err(|e| AppError::Internal(format!("dataset {}: {e}", row.name)))?;
@@ -109,6 +111,12 @@ impl App {
     pub fn stored_file(&self, sha256: &str) -> PathBuf {
         self.config.submissions_dir().join(format!("{sha256}.csv"))
     }
+}
+
+/// Loads the dataset in `folder` with the split its configuration file chooses.
+fn load(folder: &Path) -> Result<Dataset, String> {
+    let opts = folder_options(folder)?;
+    Dataset::load_with(folder, &opts).map_err(|e| e.to_string())
 }
 
 fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {

@@ -11,6 +11,7 @@
 //! platform), so the same options give byte-identical files on every start.
 
 mod files;
+mod layouts;
 mod scenes;
 mod shapes;
 mod submissions;
@@ -19,6 +20,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 
+pub use layouts::{CORE_LAYOUTS, CoreLayout, write_core_miniature};
 pub use submissions::{DemoResult, write_demo_results};
 
 /// The name of the demo dataset, which is also its folder name.

@@ -72,7 +72,7 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
             .unwrap_or_default();
         let upload = Upload {
             method: MethodName::parse(&demo.method)?,
-            dataset: row.name.clone(),
+            dataset: Some(row.name.clone()),
             protocols: vec![ProtocolName::Bop19, ProtocolName::Eccv18],
             meta: MethodMeta {
                 description: Description::parse(&demo.description)?,
@@ -82,7 +82,11 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
             },
             hardware: Hardware::parse("demo data: times are made up")?,
             visibility: Visibility::Public,
-            file: UploadedFile::from_bytes(&app.config.submissions_dir(), &name, &bytes)?,
+            files: vec![UploadedFile::from_bytes(
+                &app.config.submissions_dir(),
+                &name,
+                &bytes,
+            )?],
         };
         submit(app, &owner, upload).await?;
         tracing::info!(method = %demo.method, "demo submission queued");

@@ -15,6 +15,9 @@ pub type AppResult<T> = Result<T, AppError>;
 /// A problem of an uploaded file, with its line (0 = the file as a whole).
 #[derive(Clone, Debug, Serialize)]
 pub struct LineProblem {
+    /// The file's name when an upload holds several (the message then names it too).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
     pub line: u64,
     pub message: String,
 }

@@ -9,6 +9,7 @@ pub mod chart;
 pub mod cli;
 pub mod clock;
 pub mod config;
+pub mod dataset_config;
 pub mod demo;
 pub mod demo_setup;
 pub mod domain;

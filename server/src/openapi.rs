@@ -21,13 +21,13 @@ pub fn document() -> Value {
             "/api/v1/submissions": {
                 "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
                 "post": {
-                    "summary": "Upload a result file (BOP'19 CSV) for evaluation",
+                    "summary": "Upload result files (BOP'19 CSV, one per dataset) for evaluation",
                     "security": [{ "bearer": [] }],
                     "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
-                        "type": "object", "required": ["method", "dataset", "file"],
+                        "type": "object", "required": ["method", "file"],
                         "properties": {
                             "method": { "type": "string", "maxLength": 100 },
-                            "dataset": { "type": "string" },
+                            "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
                             "protocol": { "type": "string", "enum": ["bop19", "eccv18"], "description": "default: both" },
                             "description": { "type": "string" },
                             "paper_url": { "type": "string" },
@@ -36,15 +36,15 @@ pub fn document() -> Value {
                             "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
                             "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
                             "visibility": { "type": "string", "enum": ["public", "private"] },
-                            "file": { "type": "string", "format": "binary" }
+                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset; each becomes a submission" }
                         } } } } },
                     "responses": {
-                        "202": { "description": "queued: {id, submission, preflight, url}" },
+                        "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
                         "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
                         "200": { "description": "the same file was already submitted for this method: the existing submission" },
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the file is larger than the limit" },
-                        "422": { "description": "not a valid result file: {error, problems: [{line, message}]}" }
+                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says; nothing is submitted: {error, problems: [{file, line, message}]}" }
                     }
                 }
             },

@@ -1,12 +1,18 @@
-//! The upload flow, one way for every caller (the form, the REST API, the demo set-up): the
-//! file is validated with the evaluator's parser (every problem with its line), checked for
-//! coverage against the dataset, stored under its content hash, and queued; the method (get or
-//! create), the duplicate check and the fair-use limit are decided with the insert in one
-//! transaction. Callers hand over values already parsed at their edge (`MethodName`,
+//! The upload flow, one way for every caller (the form, the REST API, the demo set-up): each
+//! file's dataset is the `dataset` field or, without it, the one its BOP name
+//! (`METHOD_DATASET-SPLIT.csv`) says, and the two must agree, since a file for the wrong
+//! dataset is the commonest mistake; the file is validated with the evaluator's parser (every
+//! problem with its line), checked for coverage against the dataset, stored under its content
+//! hash, and queued; the method (get or create), the duplicate check and the fair-use limit are
+//! decided with the insert in one transaction. An upload of several files (one per dataset)
+//! becomes one submission per file, and every file is checked before any is stored, so one bad
+//! file refuses them all. Callers hand over values already parsed at their edge (`MethodName`,
 //! `Visibility`, ...). A refused upload leaves no row behind.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
+use std::sync::Arc;
 
 use evaluator::protocol::ProtocolName;
 use evaluator::results;
@@ -29,14 +35,15 @@ const SECONDS_PER_ESTIMATE: f64 = 0.004;
 #[derive(Debug)]
 pub struct Upload {
     pub method: MethodName,
-    /// The name of a served dataset.
-    pub dataset: String,
+    /// The name of a served dataset; `None`: each file's name says it.
+    pub dataset: Option<String>,
     /// The protocols to evaluate under.
     pub protocols: Vec<ProtocolName>,
     pub meta: MethodMeta,
     pub hardware: Hardware,
     pub visibility: Visibility,
-    pub file: UploadedFile,
+    /// One result file per dataset.
+    pub files: Vec<UploadedFile>,
 }
 
 /// A result file received into a temporary file of the submissions folder (removed unless it
@@ -74,8 +81,18 @@ pub struct Accepted {
     pub preflight: Preflight,
 }
 
-/// Validates, pre-flights, stores and queues an upload by `owner`.
-pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Accepted> {
+/// A file that passed every check, ready to be stored.
+struct Checked {
+    file: UploadedFile,
+    dataset_id: i64,
+    estimates_count: usize,
+    preflight: Preflight,
+}
+
+/// Validates, pre-flights, stores and queues an upload by `owner`: one submission per file, in
+/// the order of the files. With several files, every refused one is named in one 422 and
+/// none is stored.
+pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Accepted>> {
     let Upload {
         method,
         dataset,
@@ -83,35 +100,138 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Accept
         meta,
         hardware,
         visibility,
-        file,
+        files,
     } = upload;
+    if files.is_empty() {
+        return Err(AppError::BadRequest(
+            "field `file` (the result file) is required".into(),
+        ));
+    }
+    let several = files.len() > 1;
+    let total = files.len();
+    let mut checked = Vec::new();
+    let mut problems = Vec::new();
+    let mut refused = 0;
+    let mut seen: BTreeMap<String, String> = BTreeMap::new();
+    for file in files {
+        let name = file.name.clone();
+        let result = match file_dataset(dataset.as_deref(), &name) {
+            Ok(ds) => match seen.insert(ds.clone(), name.clone()) {
+                Some(first) => Err(AppError::Invalid {
+                    message: format!("{first} and {name} are both for dataset `{ds}`"),
+                    problems: Vec::new(),
+                }),
+                None => check(app, &ds, file, &protocols).await,
+            },
+            Err(e) => Err(e),
+        };
+        match result {
+            Ok(c) => checked.push(c),
+            Err(e) if !several => return Err(e),
+            Err(e) if e.status().is_client_error() => {
+                refused += 1;
+                problems.extend(file_problems(&name, e));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if refused > 0 {
+        return Err(AppError::Invalid {
+            message: format!("{refused} of {total} files are refused, so none was submitted"),
+            problems,
+        });
+    }
+
+    let what = Described {
+        method: &method,
+        meta: &meta,
+        protocols: &protocols,
+        visibility,
+        hardware: &hardware,
+    };
+    let mut accepted = Vec::with_capacity(checked.len());
+    for c in checked {
+        accepted.push(store(app, owner, &what, c).await?);
+    }
+    Ok(accepted)
+}
+
+/// The dataset a file is for: the field when given, else the one its name
+/// `METHOD_DATASET-SPLIT.csv` says; both given must agree.
+fn file_dataset(field: Option<&str>, file_name: &str) -> AppResult<String> {
+    let named = results::parse_result_filename(file_name).map(|n| n.dataset);
+    match (field, named) {
+        (Some(field), Some(named)) if field != named => Err(AppError::Invalid {
+            message: format!(
+                "{file_name} is named for dataset `{named}`, but the field `dataset` says \
+                 `{field}`: is it the file for the right dataset?"
+            ),
+            problems: Vec::new(),
+        }),
+        (Some(field), _) => Ok(field.to_string()),
+        (None, Some(named)) => Ok(named),
+        (None, None) => Err(AppError::BadRequest(format!(
+            "field `dataset` is required unless the file is named METHOD_DATASET-SPLIT.csv \
+             (e.g. my-method_tless-test.csv); {file_name} is not"
+        ))),
+    }
+}
+
+/// A refused file's problems, each naming the file.
+fn file_problems(file_name: &str, e: AppError) -> Vec<LineProblem> {
+    let problems = match &e {
+        AppError::Invalid { problems, .. } => problems.clone(),
+        _ => Vec::new(),
+    };
+    std::iter::once(LineProblem {
+        file: Some(file_name.to_string()),
+        line: 0,
+        message: e.to_string(),
+    })
+    .chain(problems.into_iter().map(|p| LineProblem {
+        file: Some(file_name.to_string()),
+        message: format!("{file_name}: {}", p.message),
+        ..p
+    }))
+    .collect()
+}
+
+/// Parses and pre-flights one file against its dataset, storing nothing.
+async fn check(
+    app: &App,
+    dataset: &str,
+    file: UploadedFile,
+    protocols: &[ProtocolName],
+) -> AppResult<Checked> {
     let row = app
         .store
-        .dataset_by_name(&dataset)
+        .dataset_by_name(dataset)
         .await?
         .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
-    let loaded = app.dataset(&row).await?;
+    let loaded: Arc<evaluator::Dataset> = app.dataset(&row).await?;
 
     // Parsing and the coverage check are CPU work: off the async threads, in one go.
-    let (path, ps) = (file.tmp.to_path_buf(), protocols.clone());
+    let (path, ps) = (file.tmp.to_path_buf(), protocols.to_vec());
     let parsed = tokio::task::spawn_blocking(move || {
         results::load_results(&path).map(|r| (r.estimates.len(), Preflight::of(&loaded, &r, &ps)))
     })
     .await
     .map_err(|e| AppError::Internal(e.to_string()))?;
-    let (estimates_count, mut preflight) = match parsed {
+    let (estimates_count, preflight) = match parsed {
         Ok(r) => r,
         Err(evaluator::Error::Results(problems)) => {
             let mut list: Vec<LineProblem> = problems
                 .problems
                 .iter()
                 .map(|p| LineProblem {
+                    file: None,
                     line: p.line,
                     message: p.to_string(),
                 })
                 .collect();
             if problems.omitted > 0 {
                 list.push(LineProblem {
+                    file: None,
                     line: 0,
                     message: format!("... and {} more problems", problems.omitted),
                 });
@@ -129,7 +249,43 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Accept
             problems: Vec::new(),
         });
     }
+    Ok(Checked {
+        file,
+        dataset_id: row.id,
+        estimates_count,
+        preflight,
+    })
+}
 
+/// What every file of one upload shares.
+struct Described<'a> {
+    method: &'a MethodName,
+    meta: &'a MethodMeta,
+    protocols: &'a [ProtocolName],
+    visibility: Visibility,
+    hardware: &'a Hardware,
+}
+
+/// Stores and queues one checked file.
+async fn store(
+    app: &App,
+    owner: &User,
+    what: &Described<'_>,
+    checked: Checked,
+) -> AppResult<Accepted> {
+    let Described {
+        method,
+        meta,
+        protocols,
+        visibility,
+        hardware,
+    } = *what;
+    let Checked {
+        file,
+        dataset_id,
+        estimates_count,
+        mut preflight,
+    } = checked;
     let ahead = app.store.estimates_ahead(i64::MAX).await?;
     preflight.estimated_seconds =
         (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64) * SECONDS_PER_ESTIMATE;
@@ -151,16 +307,16 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Accept
         .create_submission(
             &NewSubmission {
                 owner_id: owner.id,
-                method: &method,
-                meta: &meta,
-                dataset_id: row.id,
-                protocols: &protocols,
+                method,
+                meta,
+                dataset_id,
+                protocols,
                 visibility,
                 file_name: &file.name,
                 file_sha256: &file.sha256,
                 file_size: file.size as i64,
                 estimates_count: estimates_count as i64,
-                hardware: &hardware,
+                hardware,
                 preflight: &preflight,
             },
             fair_use,

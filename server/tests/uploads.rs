@@ -175,14 +175,11 @@ fn malformed_upload_leaves_nothing(kind: Db) {
         .collect();
     assert!(stored.is_empty(), "{kind:?}: no stored file: {stored:?}");
 
-    // Unknown datasets and missing fields are refused with a clear 4xx.
-    let r = upload(
-        &server,
-        "x",
-        "nope",
-        &fixtures().join("results/gtexact_synthA-test.csv"),
-        None,
-    );
+    // Unknown datasets and missing fields are refused with a clear 4xx (the file is named so
+    // that its name says no dataset: a BOP name would contradict the field, a 422).
+    let unnamed = dir.path().join("results.csv");
+    std::fs::copy(fixtures().join("results/gtexact_synthA-test.csv"), &unnamed).expect("copy");
+    let r = upload(&server, "x", "nope", &unnamed, None);
     assert_eq!(r.status(), 400);
     assert!(r.text().expect("body").contains("unknown dataset"));
 }

@@ -12,13 +12,18 @@ use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::dataset_config::{SplitChoice, folder_choice};
 use crate::preflight::Preflight;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// A BOP dataset folder (models/ or models_eval/, test/, test_targets_bop19.json).
+    /// A BOP dataset folder (models/ or models_eval/, test/ or test_TYPE/,
+    /// test_targets_bop19.json), or a folder of datasets: then the one the result file is
+    /// named for (`METHOD_DATASET-test.csv`).
     #[arg(long)]
     pub dataset: PathBuf,
+    #[command(flatten)]
+    pub split: SplitArgs,
     /// A result file in the BOP'19 CSV format.
     #[arg(long)]
     pub results: PathBuf,
@@ -111,7 +116,7 @@ impl OverrideArgs {
 pub fn run_eval(args: EvalArgs) -> Result<()> {
     let mut protocol = Protocol::named(args.protocol);
     args.overrides.apply(&mut protocol)?;
-    let dataset = load_dataset(&args.dataset)?;
+    let dataset = load_dataset(&args.dataset, &args.results, &args.split)?;
     let results = load_results(&args.results)?;
 
     let mut pool = rayon::ThreadPoolBuilder::new();
@@ -143,9 +148,28 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
 pub struct CheckArgs {
     /// The result file to validate.
     pub results: PathBuf,
-    /// A dataset to report coverage against (targets without estimates, ignored estimates).
+    /// A dataset to report coverage against (targets without estimates, ignored estimates):
+    /// a dataset folder or a folder of datasets, as for `eval`.
     #[arg(long)]
     pub dataset: Option<PathBuf>,
+    #[command(flatten)]
+    pub split: SplitArgs,
+}
+
+/// Which split of the dataset to read, over the folder's `poseboard-dataset.json` and the
+/// defaults (`test`, the one split type there is, `test_targets_bop19.json`).
+#[derive(Args, Debug, Default)]
+pub struct SplitArgs {
+    /// The split (default: test).
+    #[arg(long)]
+    pub split: Option<String>,
+    /// The split type: reads `{split}_{type}/` and `camera_{type}.json` (T-LESS and HB:
+    /// primesense); needed only when several are present.
+    #[arg(long)]
+    pub split_type: Option<String>,
+    /// The targets file in the dataset folder (default: test_targets_bop19.json).
+    #[arg(long)]
+    pub targets_file: Option<String>,
 }
 
 pub fn run_check(args: CheckArgs) -> Result<()> {
@@ -164,7 +188,7 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         )
     );
     if let Some(dir) = &args.dataset {
-        let dataset = load_dataset(dir)?;
+        let dataset = load_dataset(dir, &args.results, &args.split)?;
         // The upload pre-flight check, so the command line and the service say the same.
         let p = Preflight::of(
             &dataset,
@@ -182,8 +206,40 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
     Ok(())
 }
 
-fn load_dataset(dir: &Path) -> Result<Dataset> {
-    Dataset::load(dir).with_context(|| format!("cannot load the dataset in {}", dir.display()))
+/// The dataset in `dir`, or, when `dir` is a folder of datasets, the one the result file's
+/// name (`METHOD_DATASET-SPLIT.csv`) names.
+fn load_dataset(dir: &Path, results: &Path, split: &SplitArgs) -> Result<Dataset> {
+    let is_dataset = ["models", "models_eval"]
+        .iter()
+        .any(|m| dir.join(m).is_dir());
+    let dir = if is_dataset {
+        dir.to_path_buf()
+    } else {
+        let file_name = results.file_name().unwrap_or_default().to_string_lossy();
+        match results::parse_result_filename(&file_name) {
+            Some(name) if dir.join(&name.dataset).is_dir() => dir.join(&name.dataset),
+            Some(name) => bail!(
+                "{} is not a dataset folder (no models/), and has no folder `{}`, the dataset \
+                 {file_name} is named for",
+                dir.display(),
+                name.dataset
+            ),
+            None => bail!(
+                "{} is not a dataset folder (no models/), and {file_name} is not named \
+                 METHOD_DATASET-SPLIT.csv to find the dataset in it",
+                dir.display()
+            ),
+        }
+    };
+    let choice = SplitChoice {
+        split: split.split.clone(),
+        split_type: split.split_type.clone(),
+        targets_file: split.targets_file.clone(),
+    }
+    .or(folder_choice(&dir).map_err(anyhow::Error::msg)?);
+    // The evaluator's error names the file and what was expected; said once.
+    Dataset::load_with(&dir, &choice.options())
+        .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))
 }
 
 fn load_results(path: &Path) -> Result<evaluator::Results> {

@@ -7,7 +7,9 @@ use clap::{Args, Subcommand};
 use crate::accounts;
 use crate::app::App;
 use crate::config::{Config, ServeConfig};
-use crate::demo::{SynthOptions, write_dataset, write_demo_results};
+use crate::demo::{
+    CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_results,
+};
 use crate::domain::{Password, TokenLabel, UserName};
 
 #[derive(Args, Debug)]
@@ -33,6 +35,10 @@ pub enum DatasetCommand {
         scenes: u32,
         #[arg(long, default_value_t = SynthOptions::default().images_per_scene)]
         images_per_scene: u32,
+        /// Lay it out as this core BOP dataset is published (lmo, tless, tudl, icbin, itodd,
+        /// hb, ycbv: split folder, camera file, depth scale, gray images) instead of plainly.
+        #[arg(long)]
+        layout: Option<String>,
     },
     /// Write the demo result files (precise, noisy, rough) for a synthetic dataset into OUT.
     DemoResults {
@@ -126,15 +132,31 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             seed,
             scenes,
             images_per_scene,
+            layout,
         } => {
-            write_dataset(
-                &dir,
-                &SynthOptions {
-                    seed,
-                    scenes,
-                    images_per_scene,
-                },
-            )?;
+            let opts = SynthOptions {
+                seed,
+                scenes,
+                images_per_scene,
+            };
+            match layout {
+                None => write_dataset(&dir, &opts)?,
+                Some(name) => {
+                    let Some(layout) = CORE_LAYOUTS.iter().find(|l| l.name == name) else {
+                        let names: Vec<&str> = CORE_LAYOUTS.iter().map(|l| l.name).collect();
+                        anyhow::bail!(
+                            "no core layout `{name}`: expected one of {}",
+                            names.join(", ")
+                        );
+                    };
+                    write_core_miniature(&dir, layout, &opts)?;
+                    let (w, h) = layout.published_size;
+                    println!(
+                        "laid out as {name} is published, except the image size: {w} x {h} there, \
+                         the synthetic 640 x 480 here"
+                    );
+                }
+            }
             println!("wrote a synthetic BOP dataset to {}", dir.display());
             Ok(())
         }

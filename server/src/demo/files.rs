@@ -140,6 +140,16 @@ pub(super) fn write_depth_png(path: &Path, size: (u32, u32), values: &[u16]) -> 
     )
 }
 
+pub(super) fn write_gray_png(path: &Path, size: (u32, u32), gray: &[u8]) -> Result<()> {
+    write_png(
+        path,
+        size,
+        png::ColorType::Grayscale,
+        png::BitDepth::Eight,
+        gray,
+    )
+}
+
 pub(super) fn write_rgb_png(path: &Path, size: (u32, u32), rgb: &[u8]) -> Result<()> {
     write_png(path, size, png::ColorType::Rgb, png::BitDepth::Eight, rgb)
 }

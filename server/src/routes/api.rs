@@ -74,25 +74,32 @@ async fn create_submission(
     let owner = viewer.require_user()?.clone();
     // Credentials are checked before the body is looked at, even a malformed one.
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
-    let (fields, file) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
-    let Accepted {
-        submission,
-        duplicate,
-        preflight,
-    } = submit(&app, &owner, fields.parse(file)?).await?;
-    let status = if duplicate {
+    let (fields, files) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let accepted = submit(&app, &owner, fields.parse(files)?).await?;
+    // 200 only when every file had been submitted before.
+    let status = if accepted.iter().all(|a| a.duplicate) {
         StatusCode::OK
     } else {
         StatusCode::ACCEPTED
     };
-    let body = json!({
-        "id": submission.id,
-        "duplicate": duplicate,
-        "submission": submission,
-        "preflight": preflight,
-        "url": format!("/submissions/{}", submission.id),
-    });
+    let entries: Vec<serde_json::Value> = accepted.iter().map(entry).collect();
+    // One file: its submission at the top level, as before several files were taken.
+    let mut body = match entries.as_slice() {
+        [one] => one.clone(),
+        _ => json!({}),
+    };
+    body["submissions"] = json!(entries);
     Ok((status, Json(body)).into_response())
+}
+
+fn entry(a: &Accepted) -> serde_json::Value {
+    json!({
+        "id": a.submission.id,
+        "duplicate": a.duplicate,
+        "submission": a.submission,
+        "preflight": a.preflight,
+        "url": format!("/submissions/{}", a.submission.id),
+    })
 }
 
 async fn submission(

@@ -75,6 +75,12 @@ pub(crate) mod filters {
             .map_or("–".to_string(), |v| format!("{v:.3}")))
     }
 
+    /// A dataset as BOP shows it (`tless` -> `T-LESS`).
+    #[askama::filter_fn]
+    pub fn dataset_name(name: &str, _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(evaluator::dataset::display_name(name).to_string())
+    }
+
     #[askama::filter_fn]
     pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
         let secs = ms / 1000;
@@ -229,8 +235,9 @@ async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<R
     .into_response())
 }
 
-/// The form posts here; a valid upload redirects to its page, an invalid one shows the form
-/// again with every problem and the values typed so far.
+/// The form posts here; a valid upload redirects to its submission's page (to the method's
+/// page for several files), an invalid one shows the form again with every problem and the
+/// values typed so far.
 async fn submit(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -240,7 +247,7 @@ async fn submit(
     // token, which travels in the body, is checked once read.
     viewer.require_user()?;
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
-    let (fields, file) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let (fields, files) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let owner = viewer.check_csrf(&fields.csrf)?.clone();
     let typed = SubmitPage {
         method: fields.method.clone(),
@@ -253,13 +260,18 @@ async fn submit(
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()
     };
-    let accepted = match fields.parse(file) {
+    let accepted = match fields.parse(files) {
         Ok(upload) => submissions::submit(&app, &owner, upload).await,
         Err(e) => Err(e),
     };
     match accepted {
         Ok(accepted) => {
-            Ok(Redirect::to(&format!("/submissions/{}", accepted.submission.id)).into_response())
+            let to = match accepted.as_slice() {
+                [one] => format!("/submissions/{}", one.submission.id),
+                [first, ..] => format!("/methods/{}", first.submission.method_id),
+                [] => return Err(AppError::Internal("an upload without files".into())),
+            };
+            Ok(Redirect::to(&to).into_response())
         }
         Err(e) if e.status().is_client_error() => {
             let status = e.status();

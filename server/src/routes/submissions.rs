@@ -1,6 +1,7 @@
 //! Receiving an upload over HTTP, from the browser form or the REST API alike: the multipart
-//! body is streamed (the file to a temporary file under the size bound, hashed on the way),
-//! then its fields are parsed into a `submissions::Upload` for the submissions service.
+//! body is streamed (each file to a temporary file under the size bound of the whole upload,
+//! hashed on the way), then its fields are parsed into a `submissions::Upload` for the
+//! submissions service.
 
 use std::str::FromStr;
 
@@ -18,6 +19,9 @@ use crate::submissions::{Upload, UploadedFile};
 
 /// Longest accepted text field (method description and the like).
 const MAX_TEXT_FIELD: usize = 10_000;
+
+/// Most result files in one upload: one per dataset, and BOP has fewer than twenty.
+const MAX_FILES: usize = 20;
 
 /// The fields of an upload as sent.
 #[derive(Debug, Default)]
@@ -38,11 +42,8 @@ pub struct Fields {
 
 impl Fields {
     /// Checks every field and makes the upload the submissions service takes.
-    pub fn parse(&self, file: Option<UploadedFile>) -> AppResult<Upload> {
+    pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
         let method = MethodName::parse(&self.method)?;
-        if self.dataset.trim().is_empty() {
-            return Err(AppError::BadRequest("field `dataset` is required".into()));
-        }
         let protocols = match self.protocol.trim() {
             "" => vec![ProtocolName::Bop19, ProtocolName::Eccv18],
             p => vec![ProtocolName::from_str(p).map_err(AppError::BadRequest)?],
@@ -58,34 +59,48 @@ impl Fields {
             training_data: optional(&self.training_data)?,
             modality: optional(&self.modality)?,
         };
-        let file = file.ok_or_else(|| {
-            AppError::BadRequest("field `file` (the result file) is required".into())
-        })?;
+        if files.is_empty() {
+            return Err(AppError::BadRequest(
+                "field `file` (the result file) is required".into(),
+            ));
+        }
+        let dataset = self.dataset.trim();
         Ok(Upload {
             method,
-            dataset: self.dataset.trim().to_string(),
+            dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
             protocols,
             meta,
             hardware: Hardware::parse(&self.hardware)?,
             visibility,
-            file,
+            files,
         })
     }
 }
 
-/// Reads a multipart upload, streaming the file to a temporary file in the submissions folder.
+/// Reads a multipart upload, streaming each file (every `file` field) to a temporary file in
+/// the submissions folder; `limit` bounds the files' total size.
 pub async fn read_upload(
     app: &App,
     mut multipart: Multipart,
     limit: u64,
-) -> AppResult<(Fields, Option<UploadedFile>)> {
+) -> AppResult<(Fields, Vec<UploadedFile>)> {
     let mut fields = Fields::default();
-    let mut file = None;
+    let mut files: Vec<UploadedFile> = Vec::new();
     while let Some(field) = multipart.next_field().await.map_err(multipart_error)? {
         let name = field.name().unwrap_or_default().to_string();
         let slot = match name.as_str() {
             "file" => {
-                file = Some(save_file(app, field, limit).await?);
+                if files.len() == MAX_FILES {
+                    return Err(AppError::BadRequest(format!(
+                        "at most {MAX_FILES} files in one upload"
+                    )));
+                }
+                let used: u64 = files.iter().map(|f| f.size).sum();
+                let file = save_file(app, field, limit - used, limit).await?;
+                // A browser sends an empty file field when no file is chosen.
+                if !(file.size == 0 && file.name.is_empty()) {
+                    files.push(file);
+                }
                 continue;
             }
             "method" => &mut fields.method,
@@ -107,7 +122,7 @@ pub async fn read_upload(
         };
         *slot = text(field).await?;
     }
-    Ok((fields, file))
+    Ok((fields, files))
 }
 
 fn multipart_error(e: axum::extract::multipart::MultipartError) -> AppError {
@@ -133,7 +148,13 @@ async fn text(mut field: Field<'_>) -> AppResult<String> {
         .map_err(|_| AppError::BadRequest("a text field is not valid UTF-8".into()))
 }
 
-async fn save_file(app: &App, mut field: Field<'_>, limit: u64) -> AppResult<UploadedFile> {
+/// Streams one file to a temporary file; `room` is what is left of the upload's `limit`.
+async fn save_file(
+    app: &App,
+    mut field: Field<'_>,
+    room: u64,
+    limit: u64,
+) -> AppResult<UploadedFile> {
     // Only the last path component of the client's file name is kept, for display.
     let name = field
         .file_name()
@@ -154,7 +175,7 @@ async fn save_file(app: &App, mut field: Field<'_>, limit: u64) -> AppResult<Upl
     let mut size = 0u64;
     while let Some(chunk) = field.chunk().await.map_err(multipart_error)? {
         size += chunk.len() as u64;
-        if size > limit {
+        if size > room {
             return Err(AppError::TooLarge { limit });
         }
         hasher.update(&chunk);

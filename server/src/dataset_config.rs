@@ -1,0 +1,68 @@
+//! Which split of a dataset folder poseboard reads. A BOP dataset needs no configuration when
+//! its folder holds one test split (`test/` or one `test_TYPE/`) and `test_targets_bop19.json`;
+//! otherwise an operator puts a `poseboard-dataset.json` next to it, e.g.
+//! `{"split_type": "primesense"}` for a T-LESS copy with several sensors, so that the choice
+//! lives with the data and holds for `serve`, `worker` and `eval` alike.
+
+use std::path::Path;
+
+use evaluator::dataset::DatasetOptions;
+use serde::Deserialize;
+
+/// The per-folder choice of split, split type and targets file.
+pub const CONFIG_FILE: &str = "poseboard-dataset.json";
+
+/// The choice as written in the file or given as flags; unset parts keep the defaults.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct SplitChoice {
+    pub split: Option<String>,
+    pub split_type: Option<String>,
+    pub targets_file: Option<String>,
+}
+
+impl SplitChoice {
+    /// Unset parts of `self` taken from `other`.
+    pub fn or(self, other: SplitChoice) -> SplitChoice {
+        SplitChoice {
+            split: self.split.or(other.split),
+            split_type: self.split_type.or(other.split_type),
+            targets_file: self.targets_file.or(other.targets_file),
+        }
+    }
+
+    pub fn options(self) -> DatasetOptions {
+        let default = DatasetOptions::default();
+        DatasetOptions {
+            split: self.split.unwrap_or(default.split),
+            split_type: self.split_type.or(default.split_type),
+            targets_file: self.targets_file.unwrap_or(default.targets_file),
+        }
+    }
+}
+
+/// The choice written in `folder`'s configuration file (none when there is no file).
+pub fn folder_choice(folder: &Path) -> Result<SplitChoice, String> {
+    let path = folder.join(CONFIG_FILE);
+    match std::fs::read(&path) {
+        Ok(bytes) => serde_json::from_slice(&bytes).map_err(|e| {
+            format!(
+                "{}: {e}; expected {{\"split\": .., \"split_type\": .., \"targets_file\": ..}}",
+                path.display()
+            )
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(SplitChoice::default()),
+        Err(e) => Err(format!("{}: {e}", path.display())),
+    }
+}
+
+/// The options to load `folder` with: its configuration file over the defaults.
+pub fn folder_options(folder: &Path) -> Result<DatasetOptions, String> {
+    Ok(folder_choice(folder)?.options())
+}
+
+/// Whether `folder` looks like a dataset to serve: it has its targets file.
+pub fn is_dataset_folder(folder: &Path) -> bool {
+    folder_options(folder).is_ok_and(|o| folder.join(o.targets_file).is_file())
+        || folder.join(CONFIG_FILE).is_file()
+}

@@ -1,0 +1,196 @@
+//! Miniatures of the seven core BOP datasets as they are published: the synthetic dataset
+//! rearranged into each one's folder and file names, split type, camera file, depth scale,
+//! targets files and image modality, so that tests load every layout the loader must know
+//! without the gigabytes of the real ones.
+//!
+//! The image content stays the synthetic dataset's (640 x 480, LINEMOD's intrinsics): scores
+//! on a miniature must equal those on the plain layout, and only the layout may differ.
+//! The published image sizes are kept in [`CoreLayout::published_size`].
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+
+use super::files::{write_depth_png, write_gray_png, write_json_list};
+use super::{SynthOptions, write_dataset};
+
+/// How one core BOP dataset lays out its test split (after bop_toolkit's `dataset_params.py`
+/// and the published archives).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoreLayout {
+    /// The BOP name: the folder and the dataset part of result file names.
+    pub name: &'static str,
+    /// The test split's type: the split folder is `test_{type}`.
+    pub split_type: Option<&'static str>,
+    /// The camera file in the dataset folder.
+    pub camera_file: &'static str,
+    /// Depth PNG value to millimetres, in `scene_camera.json` of every image.
+    pub depth_scale: f64,
+    /// Grayscale images only (`gray/` instead of `rgb/`).
+    pub gray: bool,
+    /// (width, height) of the published test images.
+    pub published_size: (u32, u32),
+}
+
+/// LM-O, T-LESS, TUD-L, IC-BIN, ITODD, HB and YCB-V, the datasets of the BOP leaderboards'
+/// core.
+pub const CORE_LAYOUTS: [CoreLayout; 7] = [
+    CoreLayout {
+        name: "lmo",
+        split_type: None,
+        camera_file: "camera.json",
+        depth_scale: 1.0,
+        gray: false,
+        published_size: (640, 480),
+    },
+    CoreLayout {
+        name: "tless",
+        split_type: Some("primesense"),
+        camera_file: "camera_primesense.json",
+        depth_scale: 0.1,
+        gray: false,
+        published_size: (720, 540),
+    },
+    CoreLayout {
+        name: "tudl",
+        split_type: None,
+        camera_file: "camera.json",
+        depth_scale: 1.0,
+        gray: false,
+        published_size: (640, 480),
+    },
+    CoreLayout {
+        name: "icbin",
+        split_type: None,
+        camera_file: "camera.json",
+        depth_scale: 0.1,
+        gray: false,
+        published_size: (640, 480),
+    },
+    CoreLayout {
+        name: "itodd",
+        split_type: None,
+        camera_file: "camera.json",
+        depth_scale: 0.1,
+        gray: true,
+        published_size: (1280, 960),
+    },
+    CoreLayout {
+        name: "hb",
+        split_type: Some("primesense"),
+        camera_file: "camera_primesense.json",
+        depth_scale: 0.1,
+        gray: false,
+        published_size: (640, 480),
+    },
+    CoreLayout {
+        name: "ycbv",
+        split_type: None,
+        camera_file: "camera_uw.json",
+        depth_scale: 0.1,
+        gray: false,
+        published_size: (640, 480),
+    },
+];
+
+/// Writes the synthetic dataset of `opts` into `dir` laid out as `layout`: the split folder
+/// `test` or `test_{type}`, the camera file, depth PNGs and `depth_scale` in the layout's
+/// unit, `gray/` images for grayscale datasets, and besides `test_targets_bop19.json` the
+/// BOP'24 image list `test_targets_bop24.json`.
+pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions) -> Result<()> {
+    write_dataset(dir, opts)?;
+    let split = match layout.split_type {
+        Some(t) => format!("test_{t}"),
+        None => "test".to_string(),
+    };
+    if split != "test" {
+        rename(&dir.join("test"), &dir.join(&split))?;
+    }
+    let mut camera: serde_json::Map<String, serde_json::Value> =
+        read_json(&dir.join("camera.json"))?;
+    let plain_scale = camera["depth_scale"].as_f64().unwrap_or(1.0);
+    camera.insert("depth_scale".into(), layout.depth_scale.into());
+    std::fs::remove_file(dir.join("camera.json"))?;
+    super::files::write_json_object(&dir.join(layout.camera_file), camera)?;
+
+    let mut images = Vec::new();
+    for scene in std::fs::read_dir(dir.join(&split))? {
+        let scene = scene?.path();
+        let scene_id: u32 = scene
+            .file_name()
+            .and_then(|n| n.to_str()?.parse().ok())
+            .with_context(|| format!("{} is not a scene folder", scene.display()))?;
+        let cameras_path = scene.join("scene_camera.json");
+        let mut cameras: std::collections::BTreeMap<u32, serde_json::Value> =
+            read_json(&cameras_path)?;
+        for (im_id, cam) in &mut cameras {
+            cam["depth_scale"] = layout.depth_scale.into();
+            images.push(serde_json::json!({"im_id": im_id, "scene_id": scene_id}));
+            let name = format!("{im_id:06}.png");
+            rescale_depth(
+                &scene.join("depth").join(&name),
+                plain_scale / layout.depth_scale,
+            )?;
+            if layout.gray {
+                let gray_dir = scene.join("gray");
+                std::fs::create_dir_all(&gray_dir)?;
+                to_gray(&scene.join("rgb").join(&name), &gray_dir.join(&name))?;
+            }
+        }
+        if layout.gray {
+            std::fs::remove_dir_all(scene.join("rgb"))?;
+        }
+        super::files::write_json_object(&cameras_path, cameras)?;
+    }
+    images.sort_by_key(|v| (v["scene_id"].as_u64(), v["im_id"].as_u64()));
+    write_json_list(&dir.join("test_targets_bop24.json"), &images)
+}
+
+fn rename(from: &Path, to: &Path) -> Result<()> {
+    std::fs::rename(from, to)
+        .with_context(|| format!("cannot rename {} to {}", from.display(), to.display()))
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_slice(&bytes).with_context(|| format!("{} is not valid", path.display()))
+}
+
+/// Rewrites a 16-bit depth PNG with every value times `factor`, rounded (no change at 1).
+fn rescale_depth(path: &Path, factor: f64) -> Result<()> {
+    if factor == 1.0 {
+        return Ok(());
+    }
+    let (size, bytes) = read_png(path)?;
+    let values: Vec<u16> = bytes
+        .chunks_exact(2)
+        .map(|b| (f64::from(u16::from_be_bytes([b[0], b[1]])) * factor).round() as u16)
+        .collect();
+    write_depth_png(path, size, &values)
+}
+
+/// Writes the luma (ITU-R BT.601) of an 8-bit RGB PNG as an 8-bit grayscale PNG.
+fn to_gray(rgb_path: &Path, gray_path: &Path) -> Result<()> {
+    let (size, rgb) = read_png(rgb_path)?;
+    let gray: Vec<u8> = rgb
+        .chunks_exact(3)
+        .map(|p| {
+            (0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])).round()
+                as u8
+        })
+        .collect();
+    write_gray_png(gray_path, size, &gray)
+}
+
+fn read_png(path: &Path) -> Result<((u32, u32), Vec<u8>)> {
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file)).read_info()?;
+    let Some(size) = reader.output_buffer_size() else {
+        bail!("{} is too large", path.display());
+    };
+    let mut buf = vec![0; size];
+    let info = reader.next_frame(&mut buf)?;
+    buf.truncate(info.buffer_size());
+    Ok(((info.width, info.height), buf))
+}

@@ -1,0 +1,361 @@
+//! The seven core BOP datasets as published: miniatures of their layouts (made by
+//! `poseboard dataset synth --layout`) load and score exactly as the plain layout does, on the
+//! command line and in the service; uploads named the BOP way (`METHOD_DATASET-test.csv`) need
+//! no dataset field, a name that contradicts the field is refused, and one upload of seven
+//! files makes seven submissions, or none when one file is bad.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use common::{BIN, Db, TestDb, both_databases, cli_report, client, start, wait_done};
+use reqwest::blocking::multipart;
+use serde_json::Value;
+
+const CORE: [&str; 7] = ["lmo", "tless", "tudl", "icbin", "itodd", "hb", "ycbv"];
+
+fn poseboard(args: &[&str]) -> std::process::Output {
+    let out = Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("poseboard runs");
+    assert!(
+        out.status.success(),
+        "poseboard {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// A plain synthetic dataset (`plain`, one scene of two images), a folder `core` with the
+/// seven miniatures of the same content, and the demo result files for the plain one.
+struct Miniatures {
+    _dir: tempfile::TempDir,
+    plain: PathBuf,
+    core: PathBuf,
+    results: PathBuf,
+}
+
+fn miniatures() -> Miniatures {
+    let dir = tempfile::tempdir().expect("tmp");
+    let small = ["--scenes", "1", "--images-per-scene", "2"];
+    let plain = dir.path().join("plain");
+    let mut args = vec!["dataset", "synth", path(&plain)];
+    args.extend(small);
+    poseboard(&args);
+    let core = dir.path().join("core");
+    for name in CORE {
+        let target = core.join(name);
+        let mut args = vec!["dataset", "synth", path(&target), "--layout", name];
+        args.extend(small);
+        poseboard(&args);
+    }
+    let results = dir.path().join("results");
+    poseboard(&["dataset", "demo-results", path(&plain), path(&results)]);
+    Miniatures {
+        _dir: dir,
+        plain,
+        core,
+        results,
+    }
+}
+
+impl Miniatures {
+    /// The noisy demo result file under the BOP name for `dataset`.
+    fn result_for(&self, dataset: &str) -> PathBuf {
+        let to = self.results.join(format!("noisy_{dataset}-test.csv"));
+        if !to.exists() {
+            std::fs::copy(self.results.join("demo-noisy_plain-test.csv"), &to).expect("copy");
+        }
+        to
+    }
+}
+
+/// The scores of a report, without what names the dataset.
+fn scores(mut report: Value) -> Value {
+    let o = report.as_object_mut().expect("object");
+    o.remove("dataset");
+    report
+}
+
+#[test]
+fn core_layouts_are_published_as_bop_does() {
+    let m = miniatures();
+    let tless = m.core.join("tless");
+    for p in [
+        "test_primesense/000001/scene_camera.json",
+        "camera_primesense.json",
+        "test_targets_bop19.json",
+        "test_targets_bop24.json",
+    ] {
+        assert!(tless.join(p).is_file(), "{p}");
+    }
+    assert!(!tless.join("test").exists() && !tless.join("camera.json").exists());
+    assert!(m.core.join("hb/test_primesense").is_dir());
+    assert!(m.core.join("ycbv/camera_uw.json").is_file());
+    assert!(m.core.join("itodd/test/000001/gray/000000.png").is_file());
+    assert!(!m.core.join("itodd/test/000001/rgb").exists());
+    let camera: Value = serde_json::from_slice(
+        &std::fs::read(m.core.join("lmo/test/000001/scene_camera.json")).expect("read"),
+    )
+    .expect("json");
+    assert_eq!(camera["0"]["depth_scale"], 1.0);
+    let camera: Value = serde_json::from_slice(
+        &std::fs::read(tless.join("test_primesense/000001/scene_camera.json")).expect("read"),
+    )
+    .expect("json");
+    assert_eq!(camera["1"]["depth_scale"], 0.1);
+}
+
+#[test]
+fn every_core_layout_scores_as_the_plain_layout() {
+    let m = miniatures();
+    let plain = m.result_for("plain");
+    for protocol in ["bop19", "eccv18"] {
+        let expected = scores(cli_report(&m.plain, &plain, protocol));
+        for name in CORE {
+            // `--dataset` names the folder of datasets: the file name picks the dataset.
+            let report = cli_report(&m.core, &m.result_for(name), protocol);
+            assert_eq!(report["dataset"], name);
+            assert_eq!(scores(report), expected, "{name} {protocol}");
+        }
+    }
+}
+
+#[test]
+fn split_choices_and_unloadable_layouts_are_explained() {
+    let m = miniatures();
+    let results = m.result_for("tless");
+    let tless = m.core.join("tless");
+    let run = |args: &[&str]| {
+        let mut all = vec!["check-results", path(&results)];
+        all.extend(args);
+        Command::new(BIN).args(&all).output().expect("runs")
+    };
+    let ok = run(&["--dataset", path(&tless), "--split-type", "primesense"]);
+    assert!(ok.status.success());
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("tless: 4 targets"));
+
+    let out = run(&["--dataset", path(&tless), "--split-type", "kinect"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(
+            "test_kinect: no such folder: expected the split `test` of split type `kinect`"
+        ),
+        "{err}"
+    );
+    assert_eq!(err.matches("no such folder").count(), 1, "said once: {err}");
+
+    std::fs::create_dir(tless.join("test_kinect")).expect("mkdir");
+    let out = run(&["--dataset", path(&tless)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("several folders hold the split `test` (test_kinect, test_primesense)"),
+        "{err}"
+    );
+    // The folder's own choice settles it, for the CLI as for the service.
+    std::fs::write(
+        tless.join("poseboard-dataset.json"),
+        r#"{"split_type": "primesense"}"#,
+    )
+    .expect("write");
+    assert!(run(&["--dataset", path(&tless)]).status.success());
+
+    let out = run(&[
+        "--dataset",
+        path(&tless),
+        "--targets-file",
+        "test_targets_bop24.json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("test_targets_bop24.json: target 0 has no obj_id"),
+        "{err}"
+    );
+
+    let out = run(&["--dataset", path(&m.core.join("nothing"))]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("has no folder `tless`") || err.contains("no such folder"),
+        "{err}"
+    );
+}
+
+/// Uploads `files` in one request with `fields`.
+fn upload_files(
+    server: &common::Server,
+    fields: &[(&str, &str)],
+    files: &[PathBuf],
+) -> reqwest::blocking::Response {
+    let mut form = multipart::Form::new();
+    for f in files {
+        form = form.file("file", f).expect("result file");
+    }
+    for (k, v) in fields {
+        form = form.text(k.to_string(), v.to_string());
+    }
+    client()
+        .post(format!("{}/api/v1/submissions", server.base))
+        .bearer_auth(&server.token)
+        .multipart(form)
+        .send()
+        .expect("upload answered")
+}
+
+fn submissions_count(server: &common::Server) -> usize {
+    let r = client()
+        .get(format!("{}/api/v1/submissions", server.base))
+        .send()
+        .expect("answered");
+    let body: Value = r.json().expect("json");
+    body["submissions"].as_array().expect("list").len()
+}
+
+fn serves_the_core_datasets(kind: Db) {
+    let m = miniatures();
+    let dir = tempfile::tempdir().expect("tmp");
+    let db = TestDb::new(kind, "core");
+    let server = start(
+        &dir.path().join("data"),
+        &m.core,
+        &db,
+        &["--no-demo", "--submissions-per-window", "0"],
+    );
+    let base = server.base.clone();
+
+    let listed: Value = client()
+        .get(format!("{base}/api/v1/datasets"))
+        .send()
+        .expect("answered")
+        .json()
+        .expect("json");
+    let mut names: Vec<&str> = listed["datasets"]
+        .as_array()
+        .expect("list")
+        .iter()
+        .map(|d| d["name"].as_str().expect("name"))
+        .collect();
+    names.sort();
+    let mut core = CORE.to_vec();
+    core.sort();
+    assert_eq!(names, core, "{kind:?}");
+    let page = client()
+        .get(format!("{base}/datasets"))
+        .send()
+        .expect("answered")
+        .text()
+        .expect("page");
+    for display in ["LM-O", "T-LESS", "TUD-L", "IC-BIN", "ITODD", "HB", "YCB-V"] {
+        assert!(page.contains(&format!(">{display}</a>")), "{display}");
+    }
+
+    // No dataset field: the file name says it; the service scores it as the plain layout.
+    let tless_file = m.result_for("tless");
+    let r = upload_files(
+        &server,
+        &[("method", "named"), ("protocol", "bop19")],
+        std::slice::from_ref(&tless_file),
+    );
+    assert_eq!(r.status(), 202, "{kind:?}");
+    let body: Value = r.json().expect("json");
+    assert_eq!(body["submission"]["dataset"], "tless");
+    assert_eq!(body["submissions"].as_array().expect("list").len(), 1);
+    let done = wait_done(
+        &base,
+        body["id"].as_i64().expect("id"),
+        Duration::from_secs(60),
+    );
+    let plain = cli_report(&m.plain, &m.result_for("plain"), "bop19");
+    assert_eq!(
+        done["scores"]["bop19"]["bop19_average_recall"],
+        plain["bop19_average_recall"]
+    );
+    let page = client()
+        .get(format!("{base}/submissions/{}", body["id"]))
+        .send()
+        .expect("answered")
+        .text()
+        .expect("page");
+    assert!(page.contains(" on T-LESS</h1>"), "{page}");
+
+    // A name that contradicts the field.
+    let r = upload_files(
+        &server,
+        &[("method", "named"), ("dataset", "lmo")],
+        &[tless_file],
+    );
+    assert_eq!(r.status(), 422);
+    let text = r.text().expect("body");
+    assert!(
+        text.contains(
+            "noisy_tless-test.csv is named for dataset `tless`, but the field `dataset` says `lmo`"
+        ),
+        "{text}"
+    );
+    let before = submissions_count(&server);
+    assert_eq!(before, 1);
+
+    // Seven files, one bad: nothing is submitted, and every problem names its file and line.
+    let mut files: Vec<PathBuf> = CORE.iter().map(|n| m.result_for(n)).collect();
+    let good_icbin = std::fs::read_to_string(&files[3]).expect("read");
+    let bad = m.results.join("bad_icbin-test.csv");
+    let mut lines: Vec<&str> = good_icbin.lines().collect();
+    lines[2] = "1,0,1,0.5,1 0 0 0 1 0 0 0 1,0 0 500";
+    std::fs::write(&bad, lines.join("\n") + "\n").expect("write");
+    files[3] = bad;
+    let r = upload_files(&server, &[("method", "all-seven")], &files);
+    assert_eq!(r.status(), 422, "{kind:?}");
+    let body: Value = r.json().expect("json");
+    assert!(
+        body["error"]
+            .as_str()
+            .expect("error")
+            .contains("1 of 7 files are refused"),
+        "{body}"
+    );
+    let problems = body["problems"].as_array().expect("problems");
+    assert!(
+        problems.iter().any(|p| p["file"] == "bad_icbin-test.csv"
+            && p["line"] == 3
+            && p["message"]
+                .as_str()
+                .expect("message")
+                .starts_with("bad_icbin-test.csv: line 3")),
+        "{body}"
+    );
+    assert_eq!(submissions_count(&server), before);
+
+    // The seven good ones: seven submissions of one method.
+    files[3] = m.result_for("icbin");
+    let r = upload_files(&server, &[("method", "all-seven")], &files);
+    assert_eq!(r.status(), 202, "{kind:?}");
+    let body: Value = r.json().expect("json");
+    let made = body["submissions"].as_array().expect("list");
+    let datasets: Vec<&str> = made
+        .iter()
+        .map(|s| s["submission"]["dataset"].as_str().expect("dataset"))
+        .collect();
+    assert_eq!(datasets, CORE);
+    let methods: Vec<&Value> = made.iter().map(|s| &s["submission"]["method_id"]).collect();
+    assert!(methods.iter().all(|m| *m == methods[0]));
+    assert_eq!(submissions_count(&server), before + 7);
+    for s in made {
+        let done = wait_done(
+            &base,
+            s["id"].as_i64().expect("id"),
+            Duration::from_secs(120),
+        );
+        assert_eq!(
+            done["scores"]["bop19"]["bop19_average_recall"],
+            plain["bop19_average_recall"]
+        );
+    }
+}
+both_databases!(serves_the_core_datasets);
