@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use evaluator::protocol::{ErrorKind, Overrides, ProtocolName};
 use evaluator::visibility::VisibMode;
