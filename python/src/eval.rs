@@ -190,10 +190,12 @@ impl Failure {
 }
 
 fn dataset_error(path: &Path, e: &Error) -> PyErr {
-    error(
-        e,
-        format!("cannot load the dataset in {}: ", path.display()),
-    )
+    let context = format!("cannot load the dataset in {}: ", path.display());
+    // The loader explains a missing folder in words; to Python it is still a missing file.
+    if !path.exists() {
+        return PyFileNotFoundError::new_err(format!("{context}{e}"));
+    }
+    error(e, context)
 }
 
 /// The Python exception for an evaluator error: OSError (or its subclasses) for files that
