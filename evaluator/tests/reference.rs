@@ -46,10 +46,16 @@ fn dataset() -> &'static Dataset {
 
 fn run(name: &str, protocol: &Protocol) -> Evaluation {
     let path = fixtures().join("results").join(format!("{name}.csv"));
-    let results = results::load_results(&path).expect("reference results parse");
+    run_results(
+        &results::load_results(&path).expect("reference results parse"),
+        protocol,
+    )
+}
+
+fn run_results(results: &results::Results, protocol: &Protocol) -> Evaluation {
     evaluate(
         dataset(),
-        &results,
+        results,
         protocol,
         &NoProgress,
         &AtomicBool::new(false),
@@ -438,18 +444,7 @@ fn bop19_reports_minus_one_as_the_average_time_when_the_file_gives_none() {
                1,0,1,0.5,1 0 0 0 1 0 0 0 1,0 0 500,-1\n\
                1,0,3,0.4,1 0 0 0 1 0 0 0 1,0 0 600,-1\n";
     let results = results::parse_results(csv.as_bytes()).expect("valid file");
-    let run = |protocol: &Protocol| {
-        evaluate(
-            dataset(),
-            &results,
-            protocol,
-            &NoProgress,
-            &AtomicBool::new(false),
-        )
-        .expect("evaluation succeeds")
-        .report
-    };
-    let bop19 = run(&Protocol::bop19());
+    let bop19 = run_results(&results, &Protocol::bop19()).report;
     assert_eq!(bop19.bop19_average_time_per_image, Some(-1.0));
     let json = serde_json::to_value(&bop19).expect("report serialises");
     assert_eq!(
@@ -457,6 +452,7 @@ fn bop19_reports_minus_one_as_the_average_time_when_the_file_gives_none() {
         serde_json::json!(-1.0)
     );
     // bop_toolkit's ECCV'18 scores have no such key.
-    let eccv18 = serde_json::to_value(run(&Protocol::eccv18())).expect("report serialises");
+    let eccv18 = serde_json::to_value(run_results(&results, &Protocol::eccv18()).report)
+        .expect("report serialises");
     assert!(eccv18.get("bop19_average_time_per_image").is_none());
 }
