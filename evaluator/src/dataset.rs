@@ -260,6 +260,19 @@ impl Dataset {
     /// Depth in mm: the PNG value (as f32) times `depth_scale` (as f32), the float32
     /// arithmetic of bop_toolkit, so that VSD sees the very same depths. 0 = no measurement.
     pub fn load_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthImage> {
+        let png = self.open_depth(scene_id, im_id)?;
+        let (width, height) = png.size();
+        let band = png.read_rows(0..height)?;
+        Ok(DepthImage {
+            width,
+            height,
+            data: band.data,
+        })
+    }
+
+    /// The depth image of a target with only its header read, so that a caller can inflate
+    /// just the rows it needs ([`DepthPng::read_rows`]).
+    pub fn open_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthPng> {
         let path = self.depth_path(scene_id, im_id);
         let image = self
             .scenes
@@ -271,7 +284,7 @@ impl Dataset {
                     format!("scene {scene_id}, image {im_id} is not among the target images"),
                 )
             })?;
-        read_depth_png(&path, image.depth_scale as f32)
+        DepthPng::open(path, image.depth_scale as f32)
     }
 
     /// The camera files state the sensor size: the split type's (`camera_primesense.json`)
@@ -633,58 +646,130 @@ fn png_size(path: &Path) -> Result<(u32, u32)> {
 /// is corrupt, and is rejected before its buffer is allocated.
 const MAX_DEFLATE_RATIO: u64 = 1032;
 
-fn read_depth_png(path: &Path, depth_scale: f32) -> Result<DepthImage> {
-    let file_len = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
-    let mut reader = png_decoder(path)?
-        .read_info()
-        .map_err(|e| png_error(path, e))?;
-    let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
-    let sixteen = match (color, bits) {
-        (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
-        (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
-        _ => {
+/// A depth PNG whose header has been read and checked.
+///
+/// Inflating a whole 640x480 16-bit image costs about as much as rendering and scoring all the
+/// estimates of its target, while the objects of an image lie in a band of its rows: a deflate
+/// stream cannot be entered in the middle, but it can be left as soon as the last row a render
+/// covers is out, and rows above the band need not be converted. A file damaged below the
+/// rows read is therefore not noticed, as it cannot change a score.
+pub struct DepthPng {
+    path: PathBuf,
+    reader: png::Reader<BufReader<File>>,
+    depth_scale: f32,
+    sixteen: bool,
+}
+
+/// Rows `y0..y0 + rows` of a depth image in mm (0 = no measurement).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DepthRows {
+    pub width: u32,
+    /// Height of the whole image.
+    pub height: u32,
+    pub y0: u32,
+    /// Row-major: `data[(y - y0) * width + x]`.
+    pub data: Vec<f32>,
+}
+
+impl DepthPng {
+    fn open(path: PathBuf, depth_scale: f32) -> Result<DepthPng> {
+        let file_len = std::fs::metadata(&path)
+            .map_err(|e| Error::io(&path, e))?
+            .len();
+        let reader = png_decoder(&path)?
+            .read_info()
+            .map_err(|e| png_error(&path, e))?;
+        let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
+        let sixteen = match (color, bits) {
+            (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
+            (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
+            _ => {
+                return Err(Error::format(
+                    &path,
+                    format!(
+                        "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
+                         {color:?} with bit depth {}",
+                        bits as u8
+                    ),
+                ));
+            }
+        };
+        let (width, height) = (reader.info().width, reader.info().height);
+        if reader
+            .output_buffer_size()
+            .is_none_or(|n| n as u64 > file_len.saturating_mul(MAX_DEFLATE_RATIO))
+        {
             return Err(Error::format(
-                path,
-                format!(
-                    "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
-                     {color:?} with bit depth {}",
-                    bits as u8
-                ),
+                &path,
+                format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
             ));
         }
-    };
-    let (width, height) = (reader.info().width, reader.info().height);
-    let size = reader
-        .output_buffer_size()
-        .filter(|&n| n as u64 <= file_len.saturating_mul(MAX_DEFLATE_RATIO))
-        .ok_or_else(|| {
-            Error::format(
-                path,
-                format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
-            )
-        })?;
-    let mut buf = vec![0u8; size];
-    reader
-        .next_frame(&mut buf)
-        .map_err(|e| png_error(path, e))?;
-    // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
-    // straight into the new buffer vectorise (an indexed loop or `chunks_exact` did not).
-    let data: Vec<f32> = if sixteen {
-        let (samples, _) = buf.as_chunks::<2>();
-        samples
-            .iter()
-            .map(|&b| f32::from(u16::from_be_bytes(b)) * depth_scale)
-            .collect()
-    } else {
-        buf.iter().map(|&v| f32::from(v) * depth_scale).collect()
-    };
-    Ok(DepthImage {
-        width,
-        height,
-        data,
-    })
+        Ok(DepthPng {
+            path,
+            reader,
+            depth_scale,
+            sixteen,
+        })
+    }
+
+    /// (width, height) in pixels, as the header states.
+    pub fn size(&self) -> (u32, u32) {
+        let info = self.reader.info();
+        (info.width, info.height)
+    }
+
+    /// Inflates the image up to the end of `rows` (clamped to the image) and returns those
+    /// rows; nothing after them is read (except in interlaced files, where every pass covers
+    /// the whole image).
+    pub fn read_rows(mut self, rows: std::ops::Range<u32>) -> Result<DepthRows> {
+        let (width, height) = self.size();
+        let (y1, y0) = (rows.end.min(height), rows.start.min(rows.end).min(height));
+        let mut data = Vec::with_capacity(width as usize * (y1 - y0) as usize);
+        let (scale, sixteen) = (self.depth_scale, self.sixteen);
+        // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
+        // straight into the buffer vectorise (an indexed loop did not).
+        let mut push = |row: &[u8]| {
+            if sixteen {
+                let (samples, _) = row.as_chunks::<2>();
+                data.extend(
+                    samples
+                        .iter()
+                        .map(|&b| f32::from(u16::from_be_bytes(b)) * scale),
+                );
+            } else {
+                data.extend(row.iter().map(|&v| f32::from(v) * scale));
+            }
+        };
+        let path = &self.path;
+        if self.reader.info().interlaced {
+            let size = self.reader.output_buffer_size().unwrap_or(0);
+            let mut buf = vec![0u8; size];
+            self.reader
+                .next_frame(&mut buf)
+                .map_err(|e| png_error(path, e))?;
+            let line = size / height.max(1) as usize;
+            for y in y0..y1 {
+                push(&buf[y as usize * line..(y as usize + 1) * line]);
+            }
+        } else {
+            for y in 0..y1 {
+                let row = self
+                    .reader
+                    .next_row()
+                    .map_err(|e| png_error(path, e))?
+                    .ok_or_else(|| Error::format(path, format!("image data ends at row {y}")))?;
+                if y >= y0 {
+                    push(row.data());
+                }
+            }
+        }
+        Ok(DepthRows {
+            width,
+            height,
+            y0,
+            data,
+        })
+    }
 }
 
 #[cfg(test)]
@@ -858,6 +943,38 @@ mod tests {
 
         std::fs::write(&path, b"not a png").unwrap();
         assert!(matches!(d.load_depth(1, 0), Err(Error::Format { .. })));
+    }
+
+    #[test]
+    fn a_band_of_rows_equals_those_rows_of_the_whole_image() {
+        let d = reference();
+        let whole = d.load_depth(1, 0).unwrap();
+        let png = d.open_depth(1, 0).unwrap();
+        assert_eq!(png.size(), (640, 480));
+        let band = png.read_rows(150..310).unwrap();
+        assert_eq!((band.width, band.height, band.y0), (640, 480, 150));
+        assert_eq!(band.data, whole.data[150 * 640..310 * 640]);
+        // Ranges are clamped to the image; an empty one reads no samples.
+        let tail = d.open_depth(1, 0).unwrap().read_rows(470..900).unwrap();
+        assert_eq!(tail.data, whole.data[470 * 640..]);
+        let none = d.open_depth(1, 0).unwrap().read_rows(0..0).unwrap();
+        assert!(none.data.is_empty());
+        assert!(matches!(d.open_depth(7, 0), Err(Error::Format { .. })));
+    }
+
+    #[test]
+    fn a_truncated_depth_png_fails_only_when_the_missing_rows_are_read() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        let d = Dataset::load(&root).unwrap();
+        let path = d.depth_path(1, 0);
+        let whole = d.load_depth(1, 0).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+        let top = d.open_depth(1, 0).unwrap().read_rows(0..10).unwrap();
+        assert_eq!(top.data, whole.data[..10 * 640]);
+        let err = d.open_depth(1, 0).unwrap().read_rows(0..480).unwrap_err();
+        assert!(err.to_string().contains("000000.png"), "{err}");
     }
 
     #[test]

@@ -227,6 +227,21 @@ struct ImageRenders {
     pairs: HashSet<(usize, usize)>,
 }
 
+impl ImageRenders {
+    /// The image rows some render covers.
+    fn rows(&self) -> std::ops::Range<u32> {
+        let (y0, y1) = self
+            .estimates
+            .values()
+            .chain(self.gts.values())
+            .filter(|w| !w.is_empty())
+            .fold((u32::MAX, 0), |(y0, y1), w| {
+                (y0.min(w.y0), y1.max(w.y0 + w.height))
+            });
+        y0.min(y1)..y1
+    }
+}
+
 impl Context<'_> {
     /// The (object, estimate, ground truth) triples of an image whose VSD needs renders. A pair
     /// needs nothing when the projected bounding spheres (bop_toolkit's test) or the screen
@@ -298,25 +313,23 @@ impl Context<'_> {
             Some(_) => self.vsd_pairs(work, image, size),
             None => Vec::new(),
         };
-        // The depth image is decoded only when some pair needs it, while the pairs are
-        // rendered (on another worker when one is idle).
+        // The depth image is decoded only when some pair needs it, and only down to the last
+        // row a render covers (see `DepthPng`); its header comes first, as the renders must
+        // be made at its size.
         let (test, mut renders) = if pairs.is_empty() {
             (None, ImageRenders::default())
         } else {
-            let (depth, renders) = rayon::join(
-                || self.dataset.load_depth(work.scene_id, work.im_id),
-                || self.render_pairs(&pairs, image, size),
-            );
-            let test = TestImage::new(depth?, &image.camera);
-            let actual = (test.rays.width, test.rays.height);
+            let png = self.dataset.open_depth(work.scene_id, work.im_id)?;
+            let actual = png.size();
             let renders = if actual == size {
-                renders
+                self.render_pairs(&pairs, image, size)
             } else {
-                // A depth image of another size than the camera files state: render again
-                // at its size.
+                // A depth image of another size than the camera files state: render at its
+                // size.
                 let pairs = self.vsd_pairs(work, image, actual);
                 self.render_pairs(&pairs, image, actual)
             };
+            let test = TestImage::from_rows(png.read_rows(renders.rows())?, &image.camera);
             (Some(test), renders)
         };
         let mut pts_scratch = Vec::new();

@@ -46,8 +46,10 @@
 //!
 //! Speed comes from work that cannot change a pixel: only the screen box of the object is
 //! rasterised, into a [`DepthWindow`]; a triangle whose fixed-point bounding box holds no pixel
-//! centre (most faces of a fine scan) is rejected before any set-up; edge functions are stepped
-//! incrementally in 64-bit integers; [`screen_box`] bounds a render without drawing it. Faces
+//! centre (most faces of a fine scan) is rejected before any set-up; the depth plane (with its
+//! division) is set up only once a sample is found inside; edge functions are stepped
+//! incrementally in 64-bit integers, and depth is rounded to 16 bits in float32 without a
+//! conversion to float64; [`screen_box`] bounds a render without drawing it. Faces
 //! are not culled even on closed meshes: with 16-bit depth a back face at a silhouette can be a
 //! depth step nearer than the front face and win the pixel, as it does in the toolkit.
 
@@ -493,19 +495,10 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     let (e1, sx1, sy1) = edge(&b, &c);
     let (e2, sx2, sy2) = edge(&c, &a);
 
-    // Window depth as a float32 plane through the unsnapped vertices, origin at the pixel
-    // centre offset, as llvmpipe's triangle set-up computes it.
-    let x0c = a.x - 0.5;
-    let y0c = a.y - 0.5;
-    let (dx01, dy01) = (a.x - b.x, a.y - b.y);
-    let (dx20, dy20) = (c.x - a.x, c.y - a.y);
-    let ooa = 1.0 / (dx01 * dy20 - dy01 * dx20);
-    let (dx20, dy20, dx01, dy01) = (dx20 * ooa, dy20 * ooa, dx01 * ooa, dy01 * ooa);
-    let (dz01, dz20) = (a.z - b.z, c.z - a.z);
-    let dzdx = dz01 * dy20 - dz20 * dy01;
-    let dzdy = dz20 * dx01 - dz01 * dx20;
-    let z0 = a.z - (dzdx * x0c + dzdy * y0c);
-
+    // The depth plane is set up only once a sample is found inside: most triangles of a fine
+    // mesh whose bounding box holds a pixel centre still cover none, and the set-up (with its
+    // division) cost more than their edge tests.
+    let mut plane: Option<DepthPlane> = None;
     let (mut r0, mut r1, mut r2) = (e0, e1, e2);
     for y in ty0..=ty1 {
         let row = (win.image_height - 1 - y - win.top) as usize * win.width;
@@ -513,11 +506,8 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         let (mut f0, mut f1, mut f2) = (r0, r1, r2);
         for x in tx0..=tx1 {
             if (f0 | f1 | f2) >= 0 {
-                let z = (z0 + dzdx * x as f32) + dzdy * zy;
-                // Clamped to the depth range; NaN (a float32 set-up of zero area) draws nothing.
-                if z.is_finite() {
-                    let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0);
-                    let z16 = round_even(f64::from(v) * 65536.0) as u32;
+                let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
+                if let Some(z16) = p.depth16(x as f32, zy) {
                     let slot = &mut zbuf[row + (x - win.x0) as usize];
                     if z16 < *slot {
                         *slot = z16;
@@ -531,6 +521,49 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         r0 += sy0;
         r1 += sy1;
         r2 += sy2;
+    }
+}
+
+/// Window depth as a float32 plane through the unsnapped vertices, origin at the pixel centre
+/// offset, as llvmpipe's triangle set-up computes it.
+struct DepthPlane {
+    z0: f32,
+    dzdx: f32,
+    dzdy: f32,
+}
+
+impl DepthPlane {
+    #[inline]
+    fn new(a: &WinVertex, b: &WinVertex, c: &WinVertex) -> Self {
+        let x0c = a.x - 0.5;
+        let y0c = a.y - 0.5;
+        let (dx01, dy01) = (a.x - b.x, a.y - b.y);
+        let (dx20, dy20) = (c.x - a.x, c.y - a.y);
+        let ooa = 1.0 / (dx01 * dy20 - dy01 * dx20);
+        let (dx20, dy20, dx01, dy01) = (dx20 * ooa, dy20 * ooa, dx01 * ooa, dy01 * ooa);
+        let (dz01, dz20) = (a.z - b.z, c.z - a.z);
+        let dzdx = dz01 * dy20 - dz20 * dy01;
+        let dzdy = dz20 * dx01 - dz01 * dx20;
+        DepthPlane {
+            z0: a.z - (dzdx * x0c + dzdy * y0c),
+            dzdx,
+            dzdy,
+        }
+    }
+
+    /// The 16-bit depth at window pixel (x, y), clamped to the depth range; `None` for NaN (a
+    /// float32 set-up of zero area), which draws nothing.
+    #[inline]
+    fn depth16(&self, x: f32, y: f32) -> Option<u32> {
+        let z = (self.z0 + self.dzdx * x) + self.dzdy * y;
+        if !z.is_finite() {
+            return None;
+        }
+        // `v · 2^16` is exact in float32 and below 2^16, so adding and subtracting 1.5 · 2^23
+        // rounds it to the nearest integer, ties to even, as the float64 path would.
+        const MAGIC: f32 = 12_582_912.0;
+        let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0) * 65536.0;
+        Some(((v + MAGIC) - MAGIC) as u32)
     }
 }
 
@@ -660,6 +693,30 @@ mod tests {
         let x = (300.5 + 1.0 / 1024.0 - k.cx()) / k.fx() * 1000.0;
         let v = proj.vertex(&[x as f32, 0.0, 0.0], 320.0, 240.0);
         assert_eq!(v.fx, 300 * 256);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn depth_rounds_in_float32_as_the_float64_path_does(z in -0.5f32..1.5, bits in 0u32..1 << 16) {
+            // Both a spread of depths and every exact half-step between 16-bit values (ties).
+            let tie = (bits as f32 + 0.5) / (65535.0f32 / 65536.0) / 65536.0;
+            for z in [z, tie] {
+                let plane = DepthPlane { z0: z, dzdx: 0.0, dzdy: 0.0 };
+                let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0);
+                let expected = round_even(f64::from(v) * 65536.0) as u32;
+                proptest::prop_assert_eq!(plane.depth16(0.0, 0.0), Some(expected));
+            }
+        }
+    }
+
+    #[test]
+    fn a_nan_depth_draws_nothing() {
+        let plane = DepthPlane {
+            z0: f32::NAN,
+            dzdx: 0.0,
+            dzdy: 0.0,
+        };
+        assert_eq!(plane.depth16(3.0, 4.0), None);
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! the ground-truth render and its visibility mask once per GT instance ([`GtView`]), and only
 //! the estimate is rendered per evaluation. All taus are counted in the same pass.
 
-use crate::dataset::DepthImage;
+use crate::dataset::{DepthImage, DepthRows};
 use crate::math::Intrinsics;
 use crate::render::DepthWindow;
 use crate::visibility::{VisibMode, visible};
@@ -54,9 +54,12 @@ impl PixelRays {
 
 /// The test image prepared for VSD: its depth, turned into distances only where a render
 /// needs them (an object covers a few thousand of the image's pixels, and a whole distance map
-/// cost more than all of an image's renders).
+/// cost more than all of an image's renders). It may hold only a band of rows
+/// ([`TestImage::from_rows`]): the rows the renders of its image cover.
 pub struct TestImage {
     pub rays: PixelRays,
+    /// First row held.
+    y0: u32,
     depth: Vec<f32>,
 }
 
@@ -64,6 +67,17 @@ impl TestImage {
     pub fn new(depth: DepthImage, k: &Intrinsics) -> Self {
         TestImage {
             rays: PixelRays::new(k, depth.width, depth.height),
+            y0: 0,
+            depth: depth.data,
+        }
+    }
+
+    /// A test image of which only `depth`'s rows are known; every render compared with it
+    /// must lie within them.
+    pub fn from_rows(depth: DepthRows, k: &Intrinsics) -> Self {
+        TestImage {
+            rays: PixelRays::new(k, depth.width, depth.height),
+            y0: depth.y0,
             depth: depth.data,
         }
     }
@@ -71,7 +85,7 @@ impl TestImage {
     /// Distance of the measured surface at pixel (x, y), 0 where depth is missing.
     #[inline]
     fn at(&self, x: u32, y: u32) -> f64 {
-        let d = self.depth[(y * self.rays.width + x) as usize];
+        let d = self.depth[((y - self.y0) * self.rays.width + x) as usize];
         self.rays.distance(x, y, d)
     }
 }
