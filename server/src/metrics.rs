@@ -24,7 +24,12 @@ const HTTP_REQUESTS: &str = "poseboard_http_requests_total";
 const HTTP_DURATION: &str = "poseboard_http_request_duration_seconds";
 
 /// Every state a submission can be in, so that an empty state shows as 0 rather than vanishing.
-const STATES: [Status; 4] = [Status::Queued, Status::Running, Status::Done, Status::Failed];
+const STATES: [Status; 4] = [
+    Status::Queued,
+    Status::Running,
+    Status::Done,
+    Status::Failed,
+];
 
 /// Jobs take from a fraction of a second (a miniature) to an hour (a paper-sized set).
 const JOB_BUCKETS: &[f64] = &[
@@ -50,14 +55,21 @@ pub fn install() -> Result<(), BuildError> {
     if HANDLE.set(handle).is_err() {
         return Ok(());
     }
-    describe_counter!(JOBS_STARTED, "Evaluation jobs claimed by this process's workers");
+    describe_counter!(
+        JOBS_STARTED,
+        "Evaluation jobs claimed by this process's workers"
+    );
     describe_counter!(JOBS_DONE, "Jobs this process finished with scores");
     describe_counter!(JOBS_FAILED, "Jobs this process marked failed");
     describe_counter!(
         JOBS_RETRIED,
         "Jobs claimed again after an earlier attempt (its worker died or gave it up)"
     );
-    describe_histogram!(JOB_DURATION, Unit::Seconds, "Time from claim to stored outcome");
+    describe_histogram!(
+        JOB_DURATION,
+        Unit::Seconds,
+        "Time from claim to stored outcome"
+    );
     describe_counter!(
         ESTIMATES,
         "Pose estimates evaluated (summed over protocols); rate() gives estimates per second"
@@ -65,7 +77,13 @@ pub fn install() -> Result<(), BuildError> {
     describe_gauge!(QUEUE_DEPTH, "Submissions per state, read from the database");
     describe_counter!(HTTP_REQUESTS, "HTTP requests by route template and status");
     describe_histogram!(HTTP_DURATION, Unit::Seconds, "HTTP request latency");
-    for name in [JOBS_STARTED, JOBS_DONE, JOBS_FAILED, JOBS_RETRIED, ESTIMATES] {
+    for name in [
+        JOBS_STARTED,
+        JOBS_DONE,
+        JOBS_FAILED,
+        JOBS_RETRIED,
+        ESTIMATES,
+    ] {
         counter!(name).absolute(0);
     }
     Ok(())

@@ -12,8 +12,8 @@ use std::process::Command;
 use std::time::Duration;
 
 use common::{
-    BIN, Db, TestDb, admin, browser, column, fixtures, get_as, post_as,
-    reference_datasets, start, upload, upload_with, wait_done,
+    BIN, Db, TestDb, admin, browser, column, fixtures, get_as, post_as, reference_datasets, start,
+    upload, upload_with, wait_done,
 };
 use serde_json::Value;
 
@@ -64,8 +64,28 @@ fn move_data_dir(from: &Path, to: &Path) {
     }
     for entry in std::fs::read_dir(from.join("submissions")).expect("uploads") {
         let path = entry.expect("entry").path();
-        std::fs::copy(&path, to.join("submissions").join(path.file_name().expect("name")))
-            .expect("copy");
+        std::fs::copy(
+            &path,
+            to.join("submissions").join(path.file_name().expect("name")),
+        )
+        .expect("copy");
+    }
+}
+
+/// Polls a private submission as its owner until it is done.
+fn wait_private(base: &str, id: i64, token: &str) {
+    let start = std::time::Instant::now();
+    loop {
+        let s: Value = get_as(&format!("{base}/api/v1/submissions/{id}"), token)
+            .json()
+            .expect("JSON");
+        match s["status"].as_str() {
+            Some("done") => return,
+            Some("failed") => panic!("submission {id} failed: {s}"),
+            _ => {}
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "not done: {s}");
+        std::thread::sleep(Duration::from_millis(100));
     }
 }
 
@@ -131,9 +151,10 @@ fn a_sqlite_installation_moves_to_postgresql_and_back() {
         .as_i64()
         .expect("id");
     ids.push(private);
-    for id in &ids {
+    for id in &ids[..2] {
         wait_done(&base, *id, Duration::from_secs(120));
     }
+    wait_private(&base, private, &alice);
     let hide = post_as(
         &format!("{base}/api/v1/admin/submissions/{}/hide", ids[1]),
         &root,
@@ -158,7 +179,13 @@ fn a_sqlite_installation_moves_to_postgresql_and_back() {
     let printed = String::from_utf8_lossy(&out.stdout);
     assert!(printed.contains("submissions  3 rows"), "{printed}");
     assert!(printed.contains("DATA_DIR/submissions"), "{printed}");
-    for table in ["users", "api_tokens", "scores", "audit_log", "rate_counters"] {
+    for table in [
+        "users",
+        "api_tokens",
+        "scores",
+        "audit_log",
+        "rate_counters",
+    ] {
         let count = |db: &TestDb, dir: &Path| {
             column(
                 db,
@@ -206,7 +233,11 @@ fn a_sqlite_installation_moves_to_postgresql_and_back() {
         String::from_utf8_lossy(&refused.stderr)
     );
     assert_eq!(
-        column(&pg, &data2, "SELECT CAST(COUNT(*) AS TEXT) FROM submissions"),
+        column(
+            &pg,
+            &data2,
+            "SELECT CAST(COUNT(*) AS TEXT) FROM submissions"
+        ),
         ["4"],
         "a refused copy leaves the target as it was"
     );
@@ -217,17 +248,18 @@ fn a_sqlite_installation_moves_to_postgresql_and_back() {
         String::from_utf8_lossy(&forced.stderr)
     );
     assert_eq!(
-        column(&pg, &data2, "SELECT CAST(COUNT(*) AS TEXT) FROM submissions"),
+        column(
+            &pg,
+            &data2,
+            "SELECT CAST(COUNT(*) AS TEXT) FROM submissions"
+        ),
         ["3"]
     );
 
     // And back: PostgreSQL into a new SQLite file, with the same boards.
     let data3 = dir.path().join("data3");
     move_data_dir(&data, &data3);
-    let back = format!(
-        "sqlite://{}?mode=rwc",
-        data3.join("poseboard.db").display()
-    );
+    let back = format!("sqlite://{}?mode=rwc", data3.join("poseboard.db").display());
     let out = copy_db(&pg_url, &back, false);
     assert!(
         out.status.success(),

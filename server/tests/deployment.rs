@@ -56,7 +56,10 @@ fn stages() -> Vec<(String, String, Vec<String>)> {
     let mut stages: Vec<(String, String, Vec<String>)> = Vec::new();
     for line in lines {
         let words: Vec<&str> = line.split_whitespace().collect();
-        if words.first().is_some_and(|w| w.eq_ignore_ascii_case("FROM")) {
+        if words
+            .first()
+            .is_some_and(|w| w.eq_ignore_ascii_case("FROM"))
+        {
             let name = match words.as_slice() {
                 [_, _, as_, name] if as_.eq_ignore_ascii_case("AS") => name.to_string(),
                 _ => String::new(),
@@ -77,7 +80,10 @@ fn compose_names_postgres_a_server_and_workers_that_scale() {
     for name in ["postgres", "server", "worker"] {
         assert!(names.contains(&name), "no service {name}: {names:?}");
     }
-    let (server, worker) = (&compose["services"]["server"], &compose["services"]["worker"]);
+    let (server, worker) = (
+        &compose["services"]["server"],
+        &compose["services"]["worker"],
+    );
     assert!(
         compose["services"]["postgres"]["image"]
             .as_str()
@@ -142,7 +148,10 @@ fn the_dockerfile_builds_in_stages_and_runs_unprivileged() {
     let stages = stages();
     assert!(stages.len() >= 2, "multi-stage: {stages:?}");
     let (builder, base, steps) = &stages[0];
-    assert!(base.starts_with("rust:"), "built with the Rust image: {base}");
+    assert!(
+        base.starts_with("rust:"),
+        "built with the Rust image: {base}"
+    );
     assert!(
         steps
             .iter()

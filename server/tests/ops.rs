@@ -21,7 +21,10 @@ use serde_json::Value;
 /// The samples of a Prometheus exposition: (name, labels) -> value.
 fn samples(text: &str) -> BTreeMap<(String, BTreeSet<(String, String)>), f64> {
     let mut out = BTreeMap::new();
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.is_empty()) {
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.is_empty())
+    {
         let (series, value) = line.rsplit_once(' ').expect("series and value");
         let (name, labels) = match series.split_once('{') {
             Some((name, rest)) => (name, rest.strip_suffix('}').expect("closing brace")),
@@ -179,7 +182,12 @@ fn health_readiness_and_job_metrics(kind: Db) {
         n
     );
     assert!(value("poseboard_job_duration_seconds_sum", &[("outcome", "done")]) > 0.0);
-    for (state, count) in [("queued", 0.0), ("running", 0.0), ("done", n), ("failed", 0.0)] {
+    for (state, count) in [
+        ("queued", 0.0),
+        ("running", 0.0),
+        ("done", n),
+        ("failed", 0.0),
+    ] {
         assert_eq!(
             value("poseboard_queue_depth", &[("state", state)]),
             count,
@@ -252,7 +260,10 @@ fn health_readiness_and_job_metrics(kind: Db) {
         sample(&text, "poseboard_queue_depth", &[("state", "done")]),
         Some(n)
     );
-    assert_eq!(sample(&text, "poseboard_jobs_started_total", &[]), Some(0.0));
+    assert_eq!(
+        sample(&text, "poseboard_jobs_started_total", &[]),
+        Some(0.0)
+    );
     let _ = worker.kill();
     let _ = worker.wait();
 }

@@ -102,7 +102,10 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         let app = App::start(args.config).await?;
         if let Some(addr) = args.metrics_bind {
             let listener = tokio::net::TcpListener::bind(addr).await?;
-            println!("poseboard worker metrics on http://{}", listener.local_addr()?);
+            println!(
+                "poseboard worker metrics on http://{}",
+                listener.local_addr()?
+            );
             tokio::spawn(crate::routes::ops::serve_alone(app.clone(), listener));
         }
         let handles = crate::jobs::spawn_workers(&app);

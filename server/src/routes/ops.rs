@@ -61,8 +61,13 @@ pub async fn count_requests(request: Request, next: Next) -> Response {
     // Only the standard methods by name: any token is a valid method, and each would be a
     // series of its own.
     let method = match *request.method() {
-        Method::GET | Method::HEAD | Method::POST | Method::PUT | Method::DELETE
-        | Method::PATCH | Method::OPTIONS => request.method().as_str().to_string(),
+        Method::GET
+        | Method::HEAD
+        | Method::POST
+        | Method::PUT
+        | Method::DELETE
+        | Method::PATCH
+        | Method::OPTIONS => request.method().as_str().to_string(),
         _ => "other".to_string(),
     };
     let route = request

@@ -122,9 +122,12 @@ impl Store {
             return Err(StoreError::NotEmpty(filled));
         }
         for table in TABLES.iter().rev() {
-            sqlx::query(sqlx::AssertSqlSafe(format!("DELETE FROM {}", quoted(table))))
-                .execute(&mut *tx)
-                .await?;
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "DELETE FROM {}",
+                quoted(table)
+            )))
+            .execute(&mut *tx)
+            .await?;
         }
 
         let mut report = Vec::with_capacity(TABLES.len());

@@ -53,7 +53,12 @@ impl Store {
             .fetch_all(&self.pool)
             .await?;
         rows.iter()
-            .map(|r| Ok((parse_column("status", r.try_get("status")?)?, r.try_get("n")?)))
+            .map(|r| {
+                Ok((
+                    parse_column("status", r.try_get("status")?)?,
+                    r.try_get("n")?,
+                ))
+            })
             .collect()
     }
 }
