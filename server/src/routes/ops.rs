@@ -22,11 +22,14 @@ pub fn router() -> Router<AppState> {
 
 /// Serves only these endpoints (with the request counting): what a `poseboard worker`, which
 /// has no pages, offers on `--metrics-bind`.
-pub async fn serve_alone(app: AppState, listener: tokio::net::TcpListener) -> std::io::Result<()> {
+/// Runs until the process ends; a failure is logged (the worker goes on evaluating).
+pub async fn serve_alone(app: AppState, listener: tokio::net::TcpListener) {
     let service = router()
         .layer(axum::middleware::from_fn(count_requests))
         .with_state(app);
-    axum::serve(listener, service).await
+    if let Err(e) = axum::serve(listener, service).await {
+        tracing::error!(error = %e, "the metrics endpoint stopped");
+    }
 }
 
 async fn healthz() -> Json<serde_json::Value> {
