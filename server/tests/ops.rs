@@ -1,8 +1,9 @@
 //! Operations over real HTTP on both databases: `/healthz` and `/readyz` answer 200 on a
 //! healthy server; `/readyz` answers 503 naming what is not ready (a migration applied by a
-//! newer version, a served dataset whose folder is gone, on PostgreSQL a database that refuses
-//! connections); `/metrics` counts the jobs the test ran and reads the queue from the
-//! database; logs come as JSON lines with a span per job; a worker serves the same endpoints.
+//! newer version, one that failed half-way, a served dataset whose folder is gone, on
+//! PostgreSQL a database that refuses connections); `/metrics` counts the jobs the test ran and
+//! reads the queue from the database; logs come as JSON lines with a span per job; a worker
+//! serves the same endpoints.
 
 mod common;
 
@@ -339,6 +340,30 @@ fn readiness_names_what_is_missing(kind: Db) {
         &db,
         &data,
         "DELETE FROM _sqlx_migrations WHERE version = 99990101000000",
+    );
+    assert_eq!(readyz(&base).0, 200);
+
+    // The latest migration failed half-way (sqlx records it unsuccessful): it is pending.
+    let latest = "(SELECT MAX(version) FROM _sqlx_migrations)";
+    execute(
+        &db,
+        &data,
+        &format!("UPDATE _sqlx_migrations SET success = false WHERE version = {latest}"),
+    );
+    let (status, body) = readyz(&base);
+    assert_eq!(status, 503, "{kind:?}: {body}");
+    assert_eq!(not_ready_checks(&body), ["migrations"]);
+    assert!(
+        body["not_ready"][0]["reason"]
+            .as_str()
+            .expect("reason")
+            .contains("not applied"),
+        "{body}"
+    );
+    execute(
+        &db,
+        &data,
+        "UPDATE _sqlx_migrations SET success = true WHERE success = false",
     );
     assert_eq!(readyz(&base).0, 200);
 
