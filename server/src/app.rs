@@ -30,6 +30,7 @@ impl App {
     /// Connects and migrates the database, registers the datasets of the datasets directory,
     /// and returns the state.
     pub async fn start(config: Config) -> anyhow::Result<AppState> {
+        crate::metrics::install()?;
         std::fs::create_dir_all(&config.data_dir)?;
         std::fs::create_dir_all(config.submissions_dir())?;
         let store = Store::connect(&config.database_url()).await?;

@@ -1,5 +1,6 @@
 //! The `poseboard` command line: one subcommand per way of using poseboard.
 
+pub mod copy_db;
 pub mod eval;
 pub mod service;
 
@@ -23,7 +24,9 @@ pub enum Command {
     /// Run evaluation workers only, sharing a PostgreSQL database with a `serve`.
     Worker(service::WorkerArgs),
     /// Apply the database migrations and exit.
-    Migrate(service::WorkerArgs),
+    Migrate(service::MigrateArgs),
+    /// Copy every row of one database into another (SQLite to PostgreSQL or back).
+    CopyDb(copy_db::CopyDbArgs),
     /// Dataset tools.
     #[command(subcommand)]
     Dataset(service::DatasetCommand),
@@ -43,6 +46,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Serve(args) => service::serve(args),
         Command::Worker(args) => service::worker(args),
         Command::Migrate(args) => service::migrate(args),
+        Command::CopyDb(args) => copy_db::run(args),
         Command::Dataset(cmd) => service::dataset(cmd),
         Command::Admin(args) => service::admin(args),
     }

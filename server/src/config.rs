@@ -4,7 +4,7 @@
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 #[derive(Args, Clone, Debug)]
 pub struct Config {
@@ -40,6 +40,15 @@ pub struct Config {
     /// Do not generate the demo dataset and submissions.
     #[arg(long, env = "POSEBOARD_NO_DEMO")]
     pub no_demo: bool,
+    /// `json`: one JSON object per log line, for log collectors.
+    #[arg(long, env = "POSEBOARD_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LogFormat {
+    Text,
+    Json,
 }
 
 #[derive(Args, Clone, Debug)]

@@ -12,6 +12,7 @@ use std::time::Duration;
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Progress, Report, evaluate, results};
 use tokio::task::JoinHandle;
+use tracing::Instrument;
 
 use crate::app::AppState;
 use crate::store::submissions::{Fault, SubmissionRow};
@@ -52,7 +53,10 @@ async fn worker_loop(app: AppState, worker: String) {
             .claim(&worker, app.config.lease_ms(), MAX_ATTEMPTS)
             .await
         {
-            Ok(Some(job)) => run_job(&app, &worker, job).await,
+            Ok(Some(job)) => {
+                let span = tracing::info_span!("job", submission = job.id, attempt = job.attempts);
+                run_job(&app, &worker, job).instrument(span).await
+            }
             Ok(None) => {
                 tokio::select! {
                     _ = &mut notified => {}
@@ -101,7 +105,10 @@ impl Counter {
 
 async fn run_job(app: &AppState, worker: &str, job: SubmissionRow) {
     tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
+    let timer = crate::metrics::job_started(job.attempts);
     let outcome = evaluate_job(app, worker, &job).await;
+    let evaluated = (outcome.as_ref().ok())
+        .map(|reports| reports.iter().map(|r| r.estimates_evaluated as u64).sum());
     let stored = match outcome {
         Ok(reports) => app.store.finish(job.id, worker, &reports).await,
         Err(JobError::User(msg)) => app.store.fail(job.id, worker, &msg, Fault::User).await,
@@ -110,6 +117,9 @@ async fn run_job(app: &AppState, worker: &str, job: SubmissionRow) {
             app.store.fail(job.id, worker, &msg, Fault::Service).await
         }
     };
+    if let Ok(true) = stored {
+        timer.ended(evaluated);
+    }
     match stored {
         Ok(true) => tracing::info!(submission = job.id, "evaluation finished"),
         Ok(false) => tracing::warn!(submission = job.id, "job was taken over; result discarded"),

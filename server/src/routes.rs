@@ -3,6 +3,7 @@
 pub mod account;
 pub mod admin;
 pub mod api;
+pub mod ops;
 pub mod pages;
 pub mod submissions;
 
@@ -57,6 +58,7 @@ pub fn router(app: AppState) -> Router {
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)
+        .merge(ops::router())
         .layer(CompressionLayer::new())
         // Uploads are bounded per route; this bounds every other body.
         .layer(RequestBodyLimitLayer::new(max_upload as usize + 64 * 1024))
@@ -70,6 +72,7 @@ pub fn router(app: AppState) -> Router {
         // `next` and filters) sent to other sites.
         .layer(every_answer(header::X_CONTENT_TYPE_OPTIONS, "nosniff"))
         .layer(every_answer(header::REFERRER_POLICY, "same-origin"))
+        .layer(axum::middleware::from_fn(ops::count_requests))
         .layer(TraceLayer::new_for_http())
         .with_state(app)
 }

@@ -17,7 +17,9 @@ use sqlx::{Any, AnyPool, Transaction};
 
 pub mod accounts;
 pub mod audit;
+pub mod copy;
 pub mod datasets;
+pub mod health;
 pub mod methods;
 pub mod queue;
 pub mod scores;
@@ -55,6 +57,12 @@ pub enum StoreError {
     Migrate(#[from] sqlx::migrate::MigrateError),
     #[error("database: {0}")]
     Database(sqlx::Error),
+    /// The two databases of a copy do not have the same tables and columns.
+    #[error("{0}")]
+    Schema(String),
+    /// A copy target that already holds data, which a copy would mix with the source's.
+    #[error("the target database is not empty (rows in {}): copy into an empty database, or pass --force to replace its contents", .0.join(", "))]
+    NotEmpty(Vec<String>),
 }
 
 impl From<sqlx::Error> for StoreError {
@@ -123,12 +131,16 @@ impl Store {
     }
 
     pub async fn migrate(&self) -> StoreResult<()> {
-        let migrator = match self.backend {
+        self.migrator().run(&self.pool).await?;
+        Ok(())
+    }
+
+    /// The migrations of this backend, as built into the binary.
+    fn migrator(&self) -> &'static Migrator {
+        match self.backend {
             Backend::Sqlite => &SQLITE_MIGRATIONS,
             Backend::Postgres => &POSTGRES_MIGRATIONS,
-        };
-        migrator.run(&self.pool).await?;
-        Ok(())
+        }
     }
 
     /// A transaction that will write: on SQLite it takes the write lock at once (`BEGIN

@@ -22,6 +22,15 @@ pub struct ServeArgs {
 pub struct WorkerArgs {
     #[command(flatten)]
     pub config: Config,
+    /// Serve `/metrics`, `/healthz` and `/readyz` on this address (a worker has no pages).
+    #[arg(long, env = "POSEBOARD_METRICS_BIND")]
+    pub metrics_bind: Option<std::net::SocketAddr>,
+}
+
+#[derive(Args, Debug)]
+pub struct MigrateArgs {
+    #[command(flatten)]
+    pub config: Config,
 }
 
 #[derive(Subcommand, Debug)]
@@ -55,17 +64,8 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
         .build()?)
 }
 
-fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| "info,tower_http=info,sqlx=warn".into());
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .try_init();
-}
-
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
-    init_logging();
+    crate::logging::init(args.config.common.log_format);
     runtime()?.block_on(async move {
         // The port first: a server that cannot have it stops before it touches anything (a
         // worker started earlier would claim a job and leave it to wait out its lease).
@@ -96,10 +96,18 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
 }
 
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
-    init_logging();
+    crate::logging::init(args.config.log_format);
     runtime()?.block_on(async move {
         // Workers never generate demo data; the server that owns the datasets does.
         let app = App::start(args.config).await?;
+        if let Some(addr) = args.metrics_bind {
+            let listener = tokio::net::TcpListener::bind(addr).await?;
+            println!(
+                "poseboard worker metrics on http://{}",
+                listener.local_addr()?
+            );
+            tokio::spawn(crate::routes::ops::serve_alone(app.clone(), listener));
+        }
         let handles = crate::jobs::spawn_workers(&app);
         tokio::select! {
             _ = tokio::signal::ctrl_c() => {}
@@ -115,8 +123,8 @@ async fn futures_join(handles: Vec<tokio::task::JoinHandle<()>>) {
     }
 }
 
-pub fn migrate(args: WorkerArgs) -> anyhow::Result<()> {
-    init_logging();
+pub fn migrate(args: MigrateArgs) -> anyhow::Result<()> {
+    crate::logging::init(args.config.log_format);
     runtime()?.block_on(async move {
         let store = crate::store::Store::connect(&args.config.database_url()).await?;
         store.migrate().await?;

@@ -68,12 +68,14 @@ pub struct TestDb {
     drop_sql: Option<(String, String)>,
 }
 
-fn admin_url() -> String {
+/// The PostgreSQL database tests create their databases from.
+pub fn admin_url() -> String {
     std::env::var("POSEBOARD_TEST_POSTGRES")
         .unwrap_or_else(|_| "postgres://postgres@127.0.0.1:5432/test".to_string())
 }
 
-fn pg_exec(url: &str, sql: &str) {
+/// Runs one statement on the PostgreSQL database at `url`.
+pub fn pg_exec(url: &str, sql: &str) {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -378,12 +380,34 @@ pub fn get_as(url: &str, token: &str) -> reqwest::blocking::Response {
     r.send().expect("answered")
 }
 
+/// The URL of the server's database (its SQLite file when the test has no PostgreSQL one).
+pub fn database_url(db: &TestDb, data_dir: &Path) -> String {
+    db.url
+        .clone()
+        .unwrap_or_else(|| format!("sqlite://{}", data_dir.join("poseboard.db").display()))
+}
+
+/// Runs one statement on the server's database.
+pub fn execute(db: &TestDb, data_dir: &Path, sql: &str) {
+    let url = database_url(db, data_dir);
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    rt.block_on(async {
+        use sqlx::Connection;
+        sqlx::any::install_default_drivers();
+        let mut conn = sqlx::AnyConnection::connect(&url).await.expect("database");
+        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
+            .execute(&mut conn)
+            .await
+            .expect("statement runs");
+    });
+}
+
 /// Reads one column of every row of a table of the server's database.
 pub fn column(db: &TestDb, data_dir: &Path, sql: &str) -> Vec<String> {
-    let url = db
-        .url
-        .clone()
-        .unwrap_or_else(|| format!("sqlite://{}", data_dir.join("poseboard.db").display()));
+    let url = database_url(db, data_dir);
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
