@@ -9,7 +9,7 @@ mod common;
 use std::time::Duration;
 
 use common::{
-    Db, Server, TestDb, admin_token, both_databases, client, execute, fixtures, post_as,
+    Db, Server, TestDb, admin_token, both_databases, client, execute, fixtures, get_as, post_as,
     reference_datasets, start, upload, upload_with, wait_done,
 };
 use serde_json::Value;
@@ -69,7 +69,6 @@ fn boards_follow_every_change(kind: Db) {
     // The empty board is rendered and kept while the jobs wait.
     assert!(!html(&a).contains("cached-alpha"));
     assert!(methods(&a).is_empty(), "{kind:?}");
-    let alpha = id_of(upload(&a, "cached-alpha", "synthA", &file, None));
     let private = id_of(upload_with(
         &a,
         &a.token,
@@ -80,8 +79,13 @@ fn boards_follow_every_change(kind: Db) {
         ],
         &fixtures().join("results/noisemedium_synthA-test.csv"),
     ));
+    // One worker takes jobs in order: once alpha is done, the private one is too.
+    let alpha = id_of(upload(&a, "cached-alpha", "synthA", &file, None));
     wait_done(&a.base, alpha, Duration::from_secs(120));
-    wait_done(&a.base, private, Duration::from_secs(120));
+    let mine: Value = get_as(&format!("{}/api/v1/submissions/{private}", a.base), &a.token)
+        .json()
+        .expect("json");
+    assert_eq!(mine["status"], "done", "{kind:?}");
 
     // A job that ends changes the board, page and JSON.
     assert!(html(&a).contains("cached-alpha"), "{kind:?}: job ended");
