@@ -7,7 +7,7 @@
 //! `cargo bench -p server --bench load` (SQLite); with `POSEBOARD_BENCH_POSTGRES=postgres://...`
 //! (a database the benchmark may create others from) it runs on PostgreSQL instead.
 //! `POSEBOARD_BENCH_SECS` (default 10) is each measurement's length, `POSEBOARD_BENCH_CLIENTS`
-//! (100) the connections, `POSEBOARD_BENCH_SCENES` (default 12) the size of the dataset the
+//! (100) the connections, `POSEBOARD_BENCH_SCENES` (default 60) the size of the dataset the
 //! large jobs evaluate.
 //!
 //! The clients speak HTTP/1.1 by hand on one thread: a general client (reqwest) would take a
@@ -53,7 +53,7 @@ fn main() -> Res<()> {
     }
     let secs = env_num("POSEBOARD_BENCH_SECS", 10);
     let clients = env_num("POSEBOARD_BENCH_CLIENTS", 100) as usize;
-    let scenes = env_num("POSEBOARD_BENCH_SCENES", 12) as u32;
+    let scenes = env_num("POSEBOARD_BENCH_SCENES", 60) as u32;
     let postgres = std::env::var("POSEBOARD_BENCH_POSTGRES").ok();
     let work = tempfile::tempdir()?;
     let datasets = work.path().join("datasets");
@@ -73,8 +73,7 @@ fn main() -> Res<()> {
         },
     )?;
     let large_results = write_demo_results(&large, &work.path().join("large-results"), 3)?;
-    let upload_csv =
-        std::fs::read_to_string(reference.join("results/noisesmall_synthA-test.csv"))?;
+    let upload_csv = std::fs::read_to_string(reference.join("results/noisesmall_synthA-test.csv"))?;
     let reports = reference_reports(&reference)?;
     println!(
         "poseboard load benchmark: {} database, {BOARD_SUBMISSIONS} public submissions on one \
@@ -282,7 +281,11 @@ impl Run {
         let mut out = Vec::new();
         let board_id = ids[ids.len() / 2];
         let reads: Vec<Route> = vec![
-            Route::get("GET /leaderboards/bop19 (page, gzip)", "/leaderboards/bop19", true),
+            Route::get(
+                "GET /leaderboards/bop19 (page, gzip)",
+                "/leaderboards/bop19",
+                true,
+            ),
             Route::get(
                 "GET /api/v1/leaderboards/bop19 (JSON)",
                 "/api/v1/leaderboards/bop19",
@@ -301,10 +304,20 @@ impl Run {
         let mut jobs = Vec::new();
         for demo in large_results {
             let body = std::fs::read(&demo.path)?;
-            let name = demo.path.file_name().and_then(|n| n.to_str()).unwrap_or("r.csv");
+            let name = demo
+                .path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or("r.csv");
             let (status, text) = rt.block_on(one_request(
                 addr,
-                &upload_request(&token, &format!("large-{}", demo.method), LARGE, name, &body),
+                &upload_request(
+                    &token,
+                    &format!("large-{}", demo.method),
+                    LARGE,
+                    name,
+                    &body,
+                ),
             ))?;
             if !(200..300).contains(&status) {
                 return Err(format!("large upload answered {status}: {text}").into());
@@ -354,18 +367,24 @@ impl Run {
 
     fn start(&self, database_url: Option<&str>) -> Res<Server> {
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_poseboard"));
-        cmd.args(["serve", "--bind", "127.0.0.1:0", "--submissions-per-window", "0"])
-            .arg("--data-dir")
-            .arg(&self.work)
-            .arg("--datasets")
-            .arg(&self.datasets)
-            .args(&self.flags)
-            .env("RUST_LOG", "warn")
-            .env_remove("DATABASE_URL")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::from(std::fs::File::create(
-                self.work.join("server.log"),
-            )?));
+        cmd.args([
+            "serve",
+            "--bind",
+            "127.0.0.1:0",
+            "--submissions-per-window",
+            "0",
+        ])
+        .arg("--data-dir")
+        .arg(&self.work)
+        .arg("--datasets")
+        .arg(&self.datasets)
+        .args(&self.flags)
+        .env("RUST_LOG", "warn")
+        .env_remove("DATABASE_URL")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(std::fs::File::create(
+            self.work.join("server.log"),
+        )?));
         if let Some(url) = database_url {
             cmd.env("DATABASE_URL", url);
         }
@@ -431,7 +450,11 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             path: datasets.join("synthA").display().to_string(),
             objects_count: reference.objects.len() as i64,
             scenes_count: reference.scenes.len() as i64,
-            images_count: reference.scenes.values().map(|s| s.images.len() as i64).sum(),
+            images_count: reference
+                .scenes
+                .values()
+                .map(|s| s.images.len() as i64)
+                .sum(),
             targets_count: reference.targets.len() as i64,
             instances_count: reference.targets.iter().map(|t| t.inst_count as i64).sum(),
             image_width: reference.image_size.0 as i64,
@@ -441,10 +464,13 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
         })
         .await?;
     let owner = store
-        .create_user(&UserName::parse("bench")?, "$argon2id$not-a-real-hash", false)
+        .create_user(
+            &UserName::parse("bench")?,
+            "$argon2id$not-a-real-hash",
+            false,
+        )
         .await?;
-    let token =
-        server::accounts::create_token(&store, owner, &TokenLabel::parse("bench")?).await?;
+    let token = server::accounts::create_token(&store, owner, &TokenLabel::parse("bench")?).await?;
     let protocols = [ProtocolName::Bop19, ProtocolName::Eccv18];
     let hardware = Hardware::parse("a GPU")?;
     let preflight = Preflight::default();
@@ -453,7 +479,11 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
         let method = MethodName::parse(&format!("Method {i:03}"))?;
         let meta = MethodMeta {
             training_data: Some(
-                [TrainingData::Synthetic, TrainingData::Real, TrainingData::Both][i % 3],
+                [
+                    TrainingData::Synthetic,
+                    TrainingData::Real,
+                    TrainingData::Both,
+                ][i % 3],
             ),
             modality: Some([Modality::Rgb, Modality::Depth, Modality::RgbD][i % 3]),
             ..MethodMeta::default()
@@ -481,7 +511,9 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             .await?
             .ok_or("the job just queued")?;
         let f = 0.4 + 0.6 * (i as f64 / BOARD_SUBMISSIONS as f64);
-        store.finish(job.id, "populate", &scaled(reports, f)).await?;
+        store
+            .finish(job.id, "populate", &scaled(reports, f))
+            .await?;
         ids.push(id);
     }
     Ok((token, ids))
@@ -516,10 +548,8 @@ fn upload_request(token: &str, method: &str, dataset: &str, file: &str, csv: &[u
     let mut body = Vec::new();
     for (k, v) in [("method", method), ("dataset", dataset)] {
         body.extend_from_slice(
-            format!(
-                "--{boundary}\r\nContent-Disposition: form-data; name=\"{k}\"\r\n\r\n{v}\r\n"
-            )
-            .as_bytes(),
+            format!("--{boundary}\r\nContent-Disposition: form-data; name=\"{k}\"\r\n\r\n{v}\r\n")
+                .as_bytes(),
         );
     }
     body.extend_from_slice(

@@ -42,9 +42,7 @@ fn json_methods(board: &Value) -> Vec<String> {
 
 fn id_of(r: reqwest::blocking::Response) -> i64 {
     assert!(r.status().is_success(), "upload: {}", r.status());
-    r.json::<Value>().expect("json")["id"]
-        .as_i64()
-        .expect("id")
+    r.json::<Value>().expect("json")["id"].as_i64().expect("id")
 }
 
 fn boards_follow_every_change(kind: Db) {
@@ -82,9 +80,12 @@ fn boards_follow_every_change(kind: Db) {
     // One worker takes jobs in order: once alpha is done, the private one is too.
     let alpha = id_of(upload(&a, "cached-alpha", "synthA", &file, None));
     wait_done(&a.base, alpha, Duration::from_secs(120));
-    let mine: Value = get_as(&format!("{}/api/v1/submissions/{private}", a.base), &a.token)
-        .json()
-        .expect("json");
+    let mine: Value = get_as(
+        &format!("{}/api/v1/submissions/{private}", a.base),
+        &a.token,
+    )
+    .json()
+    .expect("json");
     assert_eq!(mine["status"], "done", "{kind:?}");
 
     // A job that ends changes the board, page and JSON.
@@ -118,7 +119,10 @@ fn boards_follow_every_change(kind: Db) {
         &data,
         "UPDATE methods SET name = 'renamed-quietly' WHERE name = 'cached-alpha'",
     );
-    assert!(html(&a).contains("cached-alpha"), "{kind:?}: from the cache");
+    assert!(
+        html(&a).contains("cached-alpha"),
+        "{kind:?}: from the cache"
+    );
     assert_eq!(methods(&a), ["cached-alpha"]);
 
     // An administrator's hide and unhide change it at once (and the unhidden board is rendered
@@ -137,7 +141,10 @@ fn boards_follow_every_change(kind: Db) {
     assert!(html(&b).contains("renamed-quietly"));
     assert_eq!(methods(&b), ["renamed-quietly"]);
     act(alpha, "hide");
-    assert!(!html(&b).contains("renamed-quietly"), "{kind:?}: hidden by A");
+    assert!(
+        !html(&b).contains("renamed-quietly"),
+        "{kind:?}: hidden by A"
+    );
     assert!(methods(&b).is_empty());
     act(alpha, "unhide");
     assert_eq!(methods(&b), ["renamed-quietly"]);
@@ -156,9 +163,7 @@ fn boards_follow_every_change(kind: Db) {
     assert!(methods(&b).contains(&"cached-beta".to_string()));
 
     // A direct store call from yet another process (this test) on the same database.
-    let url = db
-        .url()
-        .unwrap_or_else(|| server::store::sqlite_url(&data));
+    let url = db.url().unwrap_or_else(|| server::store::sqlite_url(&data));
     tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -167,7 +172,10 @@ fn boards_follow_every_change(kind: Db) {
             let store = server::store::Store::connect(&url).await.expect("store");
             assert!(store.set_hidden(beta, true).await.expect("hidden"));
         });
-    assert!(!html(&b).contains("cached-beta"), "{kind:?}: hidden by a store call");
+    assert!(
+        !html(&b).contains("cached-beta"),
+        "{kind:?}: hidden by a store call"
+    );
     assert_eq!(methods(&b), ["renamed-quietly"]);
 
     // A delete by an administrator, on A: gone from both.
@@ -223,7 +231,11 @@ fn gzip_for_those_who_ask(kind: Db) {
         assert!(plain.headers().get("content-encoding").is_none());
         let plain = plain.bytes().expect("body");
         let zipped = get(path, true);
-        assert_eq!(zipped.headers()["content-encoding"], "gzip", "{kind:?} {path}");
+        assert_eq!(
+            zipped.headers()["content-encoding"],
+            "gzip",
+            "{kind:?} {path}"
+        );
         let zipped = zipped.bytes().expect("body");
         let mut unzipped = Vec::new();
         std::io::Read::read_to_end(
@@ -238,6 +250,9 @@ fn gzip_for_those_who_ask(kind: Db) {
         get("/api/v1/leaderboards/bop19?sort=nonsense", false).status(),
         400
     );
-    assert_eq!(get("/leaderboards/bop19?sort=nonsense", false).status(), 400);
+    assert_eq!(
+        get("/leaderboards/bop19?sort=nonsense", false).status(),
+        400
+    );
 }
 both_databases!(gzip_for_those_who_ask);

@@ -532,7 +532,10 @@ fn board_version_follows_board_changes(kind: Db) {
         let mut check = |changed: bool, what: &str, now: (i64, u64), seen: i64| {
             assert_eq!(now.0 > last.0, changed, "{kind:?}: {what} (database)");
             assert_eq!(now.1 > last.1, changed, "{kind:?}: {what} (this store)");
-            assert_eq!(seen, now.0, "{what}: the other store reads the same version");
+            assert_eq!(
+                seen, now.0,
+                "{what}: the other store reads the same version"
+            );
             last = now;
         };
         macro_rules! step {
@@ -549,7 +552,10 @@ fn board_version_follows_board_changes(kind: Db) {
         let ds = step!(
             true,
             "dataset registered",
-            store.register_dataset(&dataset_row("synthA")).await.unwrap()
+            store
+                .register_dataset(&dataset_row("synthA"))
+                .await
+                .unwrap()
         );
         let owner = user(&store, "alice").await;
         let f = fixture("CosyPose");
@@ -564,7 +570,11 @@ fn board_version_follows_board_changes(kind: Db) {
         ) else {
             panic!("new");
         };
-        step!(false, "claimed", store.claim("w1", 60_000, 3).await.unwrap());
+        step!(
+            false,
+            "claimed",
+            store.claim("w1", 60_000, 3).await.unwrap()
+        );
         step!(
             false,
             "heartbeat",
@@ -580,13 +590,21 @@ fn board_version_follows_board_changes(kind: Db) {
             "finished",
             store.finish(id, "w1", &reports).await.unwrap()
         ));
-        assert!(step!(true, "hidden", store.set_hidden(id, true).await.unwrap()));
+        assert!(step!(
+            true,
+            "hidden",
+            store.set_hidden(id, true).await.unwrap()
+        ));
         assert!(step!(
             false,
             "nothing hidden",
             !store.set_hidden(id + 99, true).await.unwrap()
         ));
-        assert!(step!(true, "shown", store.set_hidden(id, false).await.unwrap()));
+        assert!(step!(
+            true,
+            "shown",
+            store.set_hidden(id, false).await.unwrap()
+        ));
         // The same method's next upload changes its metadata, which the boards show.
         let mut g = fixture("CosyPose");
         g.meta.modality = Some(Modality::Rgb);
@@ -599,7 +617,11 @@ fn board_version_follows_board_changes(kind: Db) {
                 .unwrap()
         );
         assert!(step!(true, "re-run", store.rerun(id).await.unwrap()));
-        let job = step!(false, "claimed", store.claim("w1", 60_000, 3).await.unwrap());
+        let job = step!(
+            false,
+            "claimed",
+            store.claim("w1", 60_000, 3).await.unwrap()
+        );
         assert!(step!(
             false,
             "failed",
@@ -618,13 +640,21 @@ fn board_version_follows_board_changes(kind: Db) {
             "nothing deleted",
             store.delete_submission(id).await.unwrap().is_none()
         ));
-        assert!(step!(true, "retired", store.retire_dataset("synthA").await.unwrap()));
+        assert!(step!(
+            true,
+            "retired",
+            store.retire_dataset("synthA").await.unwrap()
+        ));
         assert!(step!(
             false,
             "already retired",
             !store.retire_dataset("synthA").await.unwrap()
         ));
-        assert!(step!(true, "revived", store.revive_dataset("synthA").await.unwrap()));
+        assert!(step!(
+            true,
+            "revived",
+            store.revive_dataset("synthA").await.unwrap()
+        ));
     });
 }
 both_databases!(board_version_follows_board_changes);
