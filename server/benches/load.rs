@@ -754,7 +754,7 @@ async fn read_response(
             c.read_until(b'\n', &mut line).await?;
         }
     } else if let Some(n) = length {
-        body(c, n, keep.as_deref_mut()).await?;
+        body(c, n, keep).await?;
     }
     Ok((status, keep_alive))
 }
