@@ -8,6 +8,7 @@ use std::sync::Arc;
 use evaluator::Dataset;
 use tokio::sync::{Mutex, Notify};
 
+use crate::board_cache::BoardCache;
 use crate::config::Config;
 use crate::dataset_config::{folder_options, is_dataset_folder};
 use crate::error::{AppError, AppResult};
@@ -21,6 +22,8 @@ pub struct App {
     pub wake: Notify,
     /// The evaluation threads; handlers never evaluate on the async runtime.
     pub pool: rayon::ThreadPool,
+    /// Rendered leaderboards, shared by every reader.
+    pub boards: BoardCache,
     datasets: Mutex<HashMap<i64, Arc<Dataset>>>,
 }
 
@@ -39,8 +42,13 @@ impl App {
         if let Some(n) = config.eval_threads {
             pool = pool.num_threads(n);
         }
+        let boards = BoardCache::new(
+            usize::try_from(config.board_cache_mb.saturating_mul(1 << 20)).unwrap_or(usize::MAX),
+            std::time::Duration::from_millis(config.board_recheck_ms),
+        );
         let app = Arc::new(App {
             store,
+            boards,
             config,
             wake: Notify::new(),
             pool: pool.build()?,

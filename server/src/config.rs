@@ -21,7 +21,9 @@ pub struct Config {
     /// Evaluation workers in this process.
     #[arg(long, env = "POSEBOARD_WORKERS", default_value_t = 1)]
     pub workers: usize,
-    /// Threads of the evaluation pool (default: every core).
+    /// Threads of the evaluation pool. Default: every core for `poseboard worker`; one core
+    /// fewer (at least one) for `poseboard serve`, whose workers share the machine with the web
+    /// threads, so that pages stay quick while a job evaluates.
     #[arg(long, env = "POSEBOARD_EVAL_THREADS")]
     pub eval_threads: Option<usize>,
     /// A worker that has not renewed its lease for this long is taken to be dead.
@@ -37,6 +39,13 @@ pub struct Config {
     /// The fair-use window, in seconds (a day by default).
     #[arg(long, env = "POSEBOARD_LIMIT_WINDOW_SECS", default_value_t = 86_400)]
     pub limit_window_secs: u64,
+    /// Memory for rendered leaderboards (HTML and JSON), in MiB; 0 renders every request.
+    #[arg(long, env = "POSEBOARD_BOARD_CACHE_MB", default_value_t = 32)]
+    pub board_cache_mb: u64,
+    /// How often, at most, a server looks at the database for board changes made by other
+    /// processes (its own are seen at once), in milliseconds.
+    #[arg(long, env = "POSEBOARD_BOARD_RECHECK_MS", default_value_t = 250)]
+    pub board_recheck_ms: u64,
     /// Do not generate the demo dataset and submissions.
     #[arg(long, env = "POSEBOARD_NO_DEMO")]
     pub no_demo: bool,
@@ -75,6 +84,16 @@ impl Config {
         self.database_url
             .clone()
             .unwrap_or_else(|| crate::store::sqlite_url(&self.data_dir))
+    }
+
+    /// The configuration for a server whose workers evaluate beside its web threads: unless
+    /// told otherwise, the evaluation pool leaves one core to the web.
+    pub fn beside_the_web(mut self) -> Config {
+        if self.eval_threads.is_none() {
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            self.eval_threads = Some(cores.saturating_sub(1).max(1));
+        }
+        self
     }
 
     pub fn max_upload_bytes(&self) -> u64 {

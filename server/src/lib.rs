@@ -5,6 +5,7 @@
 pub mod accounts;
 pub mod app;
 pub mod auth;
+pub mod board_cache;
 pub mod chart;
 pub mod cli;
 pub mod clock;

@@ -3,6 +3,7 @@
 pub mod account;
 pub mod admin;
 pub mod api;
+pub mod boards;
 pub mod ops;
 pub mod pages;
 pub mod submissions;

@@ -10,6 +10,8 @@
 
 use std::path::Path;
 use std::str::FromStr;
+use std::sync::Arc;
+use std::sync::atomic::AtomicU64;
 
 use sqlx::any::AnyPoolOptions;
 use sqlx::migrate::Migrator;
@@ -17,6 +19,7 @@ use sqlx::{Any, AnyPool, Transaction};
 
 pub mod accounts;
 pub mod audit;
+pub mod board_version;
 pub mod copy;
 pub mod datasets;
 pub mod health;
@@ -38,6 +41,8 @@ pub enum Backend {
 pub struct Store {
     pool: AnyPool,
     backend: Backend,
+    /// Board changes committed through this store (shared by its clones).
+    board_changes: Arc<AtomicU64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -123,7 +128,11 @@ impl Store {
             });
         }
         let pool = options.connect(url).await?;
-        Ok(Store { pool, backend })
+        Ok(Store {
+            pool,
+            backend,
+            board_changes: Arc::new(AtomicU64::new(0)),
+        })
     }
 
     pub fn backend(&self) -> Backend {

@@ -516,3 +516,145 @@ fn unknown_stored_values_are_errors(kind: Db) {
     });
 }
 both_databases!(unknown_stored_values_are_errors);
+
+/// The board version moves, in the database and in this store's own count, with every change a
+/// leaderboard can show, and with nothing else: servers sharing the database rely on it to drop
+/// their rendered boards.
+fn board_version_follows_board_changes(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_board_version");
+    let reports = [reference_report(ProtocolName::Bop19)];
+    run(async {
+        let (store, url) = store(kind, &db, dir.path()).await;
+        // Another process's store on the same database sees every change, counted or not.
+        let other = Store::connect(&url).await.unwrap();
+        let mut last = (store.board_version().await.unwrap(), 0);
+        let mut check = |changed: bool, what: &str, now: (i64, u64), seen: i64| {
+            assert_eq!(now.0 > last.0, changed, "{kind:?}: {what} (database)");
+            assert_eq!(now.1 > last.1, changed, "{kind:?}: {what} (this store)");
+            assert_eq!(
+                seen, now.0,
+                "{what}: the other store reads the same version"
+            );
+            last = now;
+        };
+        macro_rules! step {
+            ($changed:expr, $what:expr, $call:expr) => {{
+                let out = $call;
+                let now = (
+                    store.board_version().await.unwrap(),
+                    store.local_board_changes(),
+                );
+                check($changed, $what, now, other.board_version().await.unwrap());
+                out
+            }};
+        }
+        let ds = step!(
+            true,
+            "dataset registered",
+            store
+                .register_dataset(&dataset_row("synthA"))
+                .await
+                .unwrap()
+        );
+        let owner = user(&store, "alice").await;
+        let f = fixture("CosyPose");
+        let protocols = [ProtocolName::Bop19];
+        let Created::New(id) = step!(
+            false,
+            "new method's submission queued",
+            store
+                .create_submission(&new_submission(&f, owner, ds.id, "aaaa", &protocols), None)
+                .await
+                .unwrap()
+        ) else {
+            panic!("new");
+        };
+        step!(
+            false,
+            "claimed",
+            store.claim("w1", 60_000, 3).await.unwrap()
+        );
+        step!(
+            false,
+            "heartbeat",
+            store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap()
+        );
+        assert!(step!(
+            false,
+            "another worker's finish",
+            !store.finish(id, "w2", &reports).await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "finished",
+            store.finish(id, "w1", &reports).await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "hidden",
+            store.set_hidden(id, true).await.unwrap()
+        ));
+        assert!(step!(
+            false,
+            "nothing hidden",
+            !store.set_hidden(id + 99, true).await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "shown",
+            store.set_hidden(id, false).await.unwrap()
+        ));
+        // The same method's next upload changes its metadata, which the boards show.
+        let mut g = fixture("CosyPose");
+        g.meta.modality = Some(Modality::Rgb);
+        step!(
+            true,
+            "method metadata",
+            store
+                .create_submission(&new_submission(&g, owner, ds.id, "bbbb", &protocols), None)
+                .await
+                .unwrap()
+        );
+        assert!(step!(true, "re-run", store.rerun(id).await.unwrap()));
+        let job = step!(
+            false,
+            "claimed",
+            store.claim("w1", 60_000, 3).await.unwrap()
+        );
+        assert!(step!(
+            false,
+            "failed",
+            store
+                .fail(job.expect("a job").id, "w1", "bad", Fault::User)
+                .await
+                .unwrap()
+        ));
+        assert!(step!(
+            true,
+            "deleted",
+            store.delete_submission(id).await.unwrap().is_some()
+        ));
+        assert!(step!(
+            false,
+            "nothing deleted",
+            store.delete_submission(id).await.unwrap().is_none()
+        ));
+        assert!(step!(
+            true,
+            "retired",
+            store.retire_dataset("synthA").await.unwrap()
+        ));
+        assert!(step!(
+            false,
+            "already retired",
+            !store.retire_dataset("synthA").await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "revived",
+            store.revive_dataset("synthA").await.unwrap()
+        ));
+    });
+}
+both_databases!(board_version_follows_board_changes);

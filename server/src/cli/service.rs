@@ -70,7 +70,7 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         // The port first: a server that cannot have it stops before it touches anything (a
         // worker started earlier would claim a job and leave it to wait out its lease).
         let listener = tokio::net::TcpListener::bind(args.config.bind).await?;
-        let config = args.config.common;
+        let config = args.config.common.beside_the_web();
         let demo = !config.no_demo && config.datasets.is_none();
         if demo {
             crate::demo_setup::ensure_demo_dataset(&config.datasets_dir()).await?;

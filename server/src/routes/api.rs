@@ -4,7 +4,7 @@ use std::str::FromStr;
 
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
@@ -13,7 +13,9 @@ use serde_json::json;
 
 use crate::app::AppState;
 use crate::auth::Viewer;
+use crate::board_cache::Format;
 use crate::error::{AppError, AppResult};
+use crate::routes::boards;
 use crate::routes::submissions::read_upload;
 use crate::submissions::{Accepted, submit};
 use crate::views;
@@ -110,13 +112,20 @@ async fn submission(
     Ok(Json(views::submission(&app, id, &viewer).await?))
 }
 
+/// The same for every reader, like its page: served from the board cache.
 async fn leaderboard(
     State(app): State<AppState>,
+    headers: HeaderMap,
     Path(protocol): Path<String>,
     Query(filter): Query<views::BoardFilter>,
-) -> AppResult<Json<views::Leaderboard>> {
+) -> AppResult<Response> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
-    Ok(Json(views::leaderboard(&app, protocol, &filter).await?))
+    let key = boards::key(Format::Json, protocol, &filter);
+    boards::answer(&app, &headers, key, || async {
+        let board = views::leaderboard(&app, protocol, &filter).await?;
+        serde_json::to_vec(&board).map_err(|e| AppError::Internal(format!("leaderboard JSON: {e}")))
+    })
+    .await
 }
 
 /// The OpenAPI description of this API, written by hand: it is small, and a generator would

@@ -8,7 +8,7 @@ use askama_web::WebTemplate;
 use axum::Router;
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::get;
 use evaluator::Report;
@@ -16,7 +16,9 @@ use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
 use crate::auth::Viewer;
+use crate::board_cache::Format;
 use crate::error::{AppError, AppResult, ErrorBody};
+use crate::routes::boards;
 use crate::routes::submissions::read_upload;
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
@@ -117,29 +119,42 @@ struct LeaderboardPage {
 
 async fn home(
     State(app): State<AppState>,
+    headers: HeaderMap,
     Query(q): Query<BoardFilter>,
-) -> AppResult<LeaderboardPage> {
-    leaderboard_page(&app, ProtocolName::Bop19, q).await
+) -> AppResult<Response> {
+    leaderboard_page(&app, &headers, ProtocolName::Bop19, q).await
 }
 
 async fn leaderboard(
     State(app): State<AppState>,
+    headers: HeaderMap,
     Path(protocol): Path<String>,
     Query(q): Query<BoardFilter>,
-) -> AppResult<LeaderboardPage> {
+) -> AppResult<Response> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
-    leaderboard_page(&app, protocol, q).await
+    leaderboard_page(&app, &headers, protocol, q).await
 }
 
+/// The page is the same for every reader (it shows public submissions only and does not look at
+/// who asks), so it comes from the board cache; the home page is the BOP'19 board.
 async fn leaderboard_page(
     app: &AppState,
+    headers: &HeaderMap,
     protocol: ProtocolName,
     q: BoardFilter,
-) -> AppResult<LeaderboardPage> {
-    Ok(LeaderboardPage {
-        board: views::leaderboard(app, protocol, &q).await?,
-        protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
+) -> AppResult<Response> {
+    let key = boards::key(Format::Html, protocol, &q);
+    boards::answer(app, headers, key, || async move {
+        let page = LeaderboardPage {
+            board: views::leaderboard(app, protocol, &q).await?,
+            protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
+        };
+        let html = page
+            .render()
+            .map_err(|e| AppError::Internal(format!("leaderboard page: {e}")))?;
+        Ok(html.into_bytes())
     })
+    .await
 }
 
 #[derive(Template, WebTemplate)]

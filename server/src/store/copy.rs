@@ -30,6 +30,11 @@ const TABLES: &[&str] = &[
     "sign_in_addresses",
 ];
 
+/// Tables the migrations create and seed themselves, holding no data of their own: not copied.
+/// The board version is bumped on the target instead, so servers already running on it drop
+/// the boards they rendered before the copy.
+const BOOKKEEPING: &[&str] = &["board_version"];
+
 /// The value kinds `sqlx::Any` carries; every column of the schema is one of them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -85,7 +90,7 @@ impl Store {
                 .tables()
                 .await?
                 .into_iter()
-                .filter(|t| !TABLES.contains(&t.as_str()))
+                .filter(|t| !TABLES.contains(&t.as_str()) && !BOOKKEEPING.contains(&t.as_str()))
                 .collect();
             if !extra.is_empty() {
                 return Err(StoreError::Schema(format!(
@@ -146,6 +151,7 @@ impl Store {
             }
             report.push((*table, n));
         }
+        super::board_version::bump(&mut tx).await?;
         tx.commit().await?;
         source.rollback().await?;
         Ok(report)

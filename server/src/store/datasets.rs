@@ -47,6 +47,7 @@ impl Store {
     /// Registers a dataset, or refreshes the description of the one of that name; returns the
     /// row as stored, whose `retired` flag is left as it was (see [`Store::revive_dataset`]).
     pub async fn register_dataset(&self, d: &DatasetRow) -> StoreResult<DatasetRow> {
+        let mut tx = self.write_transaction().await?;
         let row = sqlx::query(
             "INSERT INTO datasets (name, path, objects_count, scenes_count, images_count, \
              targets_count, instances_count, image_width, image_height, added_at) \
@@ -68,27 +69,33 @@ impl Store {
         .bind(d.image_width)
         .bind(d.image_height)
         .bind(now_ms())
-        .fetch_one(&self.pool)
+        .fetch_one(&mut *tx)
         .await?;
-        dataset(&row)
+        let row = dataset(&row)?;
+        self.commit_board_change(tx, true).await?;
+        Ok(row)
     }
 
     /// Serves a retired dataset again; false when there is no retired dataset of that name.
     pub async fn revive_dataset(&self, name: &str) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
         let done = sqlx::query("UPDATE datasets SET retired = 0 WHERE name = $1 AND retired = 1")
             .bind(name)
-            .execute(&self.pool)
+            .execute(&mut *tx)
             .await?;
-        Ok(done.rows_affected() == 1)
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
     }
 
     /// Stops serving a dataset; false when no served dataset has that name.
     pub async fn retire_dataset(&self, name: &str) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
         let done = sqlx::query("UPDATE datasets SET retired = 1 WHERE name = $1 AND retired = 0")
             .bind(name)
-            .execute(&self.pool)
+            .execute(&mut *tx)
             .await?;
-        Ok(done.rows_affected() == 1)
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
     }
 
     /// The datasets served, by name.

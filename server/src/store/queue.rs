@@ -7,6 +7,7 @@ use evaluator::Report;
 use evaluator::protocol::ProtocolName;
 use sqlx::Row;
 
+use super::board_version;
 use super::submissions::{Fault, SubmissionRow};
 use super::{Backend, Store, StoreError, StoreResult};
 use crate::clock::now_ms;
@@ -78,7 +79,8 @@ impl Store {
 
     /// Stores the scores and marks the submission done, in one transaction that only commits
     /// if the job is still this worker's: a job taken over after a lost lease never ends up
-    /// with two score sets.
+    /// with two score sets. The same transaction bumps the board version. (A failed job needs
+    /// no bump: it was running, so no board showed it.)
     pub async fn finish(&self, id: i64, worker: &str, reports: &[Report]) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let now = now_ms();
@@ -156,7 +158,9 @@ impl Store {
                 .await?;
             }
         }
+        board_version::bump(&mut tx).await?;
         tx.commit().await?;
+        self.board_changed();
         Ok(true)
     }
 

@@ -11,6 +11,7 @@ use serde::Serialize;
 use sqlx::Row;
 use sqlx::any::AnyRow;
 
+use super::board_version;
 use super::methods::MethodMeta;
 use super::{Backend, Store, StoreError, StoreResult, parse_column};
 use crate::clock::now_ms;
@@ -292,9 +293,14 @@ impl Store {
             }
         }
         let now = now_ms();
+        let mut meta_changed = false;
         let method_id = match method_id {
             Some(id) => {
-                update_method_meta(&mut tx, id, new.meta).await?;
+                // A method's training data and input are columns of the boards.
+                if update_method_meta(&mut tx, id, new.meta).await? {
+                    board_version::bump(&mut tx).await?;
+                    meta_changed = true;
+                }
                 id
             }
             None => sqlx::query(
@@ -338,6 +344,9 @@ impl Store {
         .await?
         .try_get("id")?;
         tx.commit().await?;
+        if meta_changed {
+            self.board_changed();
+        }
         Ok(Created::New(id))
     }
 
@@ -419,25 +428,30 @@ impl Store {
 
     /// Hides or shows a submission; false when there is no such submission.
     pub async fn set_hidden(&self, id: i64, hidden: bool) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
         let done = sqlx::query("UPDATE submissions SET hidden = $1 WHERE id = $2")
             .bind(i64::from(hidden))
             .bind(id)
-            .execute(&self.pool)
+            .execute(&mut *tx)
             .await?;
-        Ok(done.rows_affected() == 1)
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
     }
 
     /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
     /// until the new ones replace them. False when it is missing or not finished.
     pub async fn rerun(&self, id: i64) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', progress = 0, attempts = 0, error = NULL, \
              fault = NULL, worker = NULL, lease_until = NULL WHERE id = $1 AND status IN ('done', 'failed')",
         )
         .bind(id)
-        .execute(&self.pool)
+        .execute(&mut *tx)
         .await?;
-        Ok(done.rows_affected() == 1)
+        // A finished submission leaves the boards until its new scores are in.
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
     }
 
     /// Deletes a submission and its scores; `None` when there is no such submission.
@@ -464,7 +478,9 @@ impl Store {
             .bind(&sha)
             .fetch_one(&mut *tx)
             .await?;
+        board_version::bump(&mut tx).await?;
         tx.commit().await?;
+        self.board_changed();
         Ok(Some(Deleted {
             file_unused: others.try_get::<i64, _>("n")? == 0,
             file_sha256: sha,
@@ -472,12 +488,14 @@ impl Store {
     }
 }
 
-/// Updates the metadata fields a new upload gives; the others keep their stored values.
+/// Updates the metadata fields a new upload gives; the others keep their stored values. True
+/// when a field was written.
 async fn update_method_meta(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
     id: i64,
     meta: &MethodMeta,
-) -> StoreResult<()> {
+) -> StoreResult<bool> {
+    let mut written = false;
     for (column, value) in [
         ("description", meta.description.as_str()),
         ("paper_url", meta.paper_url.as_str()),
@@ -496,7 +514,8 @@ async fn update_method_meta(
                 .bind(id)
                 .execute(&mut **tx)
                 .await?;
+            written = true;
         }
     }
-    Ok(())
+    Ok(written)
 }
