@@ -435,26 +435,6 @@ pub fn post_as(url: &str, token: &str, json: Option<Value>) -> reqwest::blocking
     r.send().expect("answered")
 }
 
-/// Runs one statement on the server's database, behind the service's back.
-pub fn execute(db: &TestDb, data_dir: &Path, sql: &str) {
-    let url = db
-        .url
-        .clone()
-        .unwrap_or_else(|| format!("sqlite://{}", data_dir.join("poseboard.db").display()));
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    rt.block_on(async {
-        use sqlx::Connection;
-        sqlx::any::install_default_drivers();
-        let mut conn = sqlx::AnyConnection::connect(&url).await.expect("database");
-        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
-            .execute(&mut conn)
-            .await
-            .expect("statement");
-    });
-}
 
 /// Creates the administrator `name` and returns an API token for it.
 pub fn admin_token(data_dir: &Path, db: &TestDb, name: &str) -> String {
