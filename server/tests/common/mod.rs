@@ -435,7 +435,6 @@ pub fn post_as(url: &str, token: &str, json: Option<Value>) -> reqwest::blocking
     r.send().expect("answered")
 }
 
-
 /// Creates the administrator `name` and returns an API token for it.
 pub fn admin_token(data_dir: &Path, db: &TestDb, name: &str) -> String {
     std::fs::create_dir_all(data_dir).expect("mkdir");
