@@ -9,8 +9,8 @@ use evaluator::Dataset;
 use tokio::sync::{Mutex, Notify};
 
 use crate::config::Config;
-use crate::dataset_hash;
 use crate::dataset_config::{folder_options, is_dataset_folder};
+use crate::dataset_hash;
 use crate::error::{AppError, AppResult};
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
@@ -76,7 +76,10 @@ impl App {
             let imported =
                 uploaded_file::import_legacy(&app.store, &app.config.submissions_dir()).await?;
             if imported > 0 {
-                tracing::info!(files = imported, "uploads kept on disk moved into the database");
+                tracing::info!(
+                    files = imported,
+                    "uploads kept on disk moved into the database"
+                );
             }
         }
         Ok(app)

@@ -382,16 +382,15 @@ impl Worker {
                 for name in protocols {
                     started.fetch_add(1, Ordering::Relaxed);
                     let protocol = Protocol::named(name);
-                    let report =
-                        evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
-                            .map_err(|e| match e {
-                                evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
-                                    JobError::TakenOver
-                                }
-                                evaluator::Error::Cancelled => JobError::Stopped,
-                                other => JobError::Service(other.to_string()),
-                            })?
-                            .report;
+                    let report = evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
+                        .map_err(|e| match e {
+                            evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
+                                JobError::TakenOver
+                            }
+                            evaluator::Error::Cancelled => JobError::Stopped,
+                            other => JobError::Service(other.to_string()),
+                        })?
+                        .report;
                     reports.push(report);
                 }
                 Ok(reports)
@@ -467,4 +466,3 @@ impl Counter {
         (finished_share + current / protocols.max(1) as f64).clamp(0.0, 0.99)
     }
 }
-

@@ -23,7 +23,10 @@ impl Shutdown {
                 _ = term.recv() => "SIGTERM",
                 _ = int.recv() => "SIGINT",
             };
-            tracing::info!(signal = name, "stopping: no new jobs, running ones released");
+            tracing::info!(
+                signal = name,
+                "stopping: no new jobs, running ones released"
+            );
             let _ = tx.send(true);
         });
         Ok(Shutdown { rx })

@@ -169,9 +169,7 @@ fn submit(server: &common::Server, method: &str, dataset: &str, file: &Path) -> 
         file,
     );
     assert_eq!(r.status(), 202, "upload of {method}");
-    r.json::<Value>().expect("json")["id"]
-        .as_i64()
-        .expect("id")
+    r.json::<Value>().expect("json")["id"].as_i64().expect("id")
 }
 
 /// The stored BOP'19 scores of a submission (one row per score set stored).
@@ -253,7 +251,10 @@ impl Queued {
     fn wait_running(&self, by: &Proc) {
         wait_until("the job runs", Duration::from_secs(60), || {
             let s = self.status();
-            assert!(!s.starts_with("done"), "finished too soon to be interrupted: {s}");
+            assert!(
+                !s.starts_with("done"),
+                "finished too soon to be interrupted: {s}"
+            );
             s.starts_with("running") && s.ends_with(&by.worker_id())
         });
     }
@@ -348,8 +349,8 @@ fn three_workers_share_the_queue_of_a_stopped_server() {
         );
     }
     for (proc, own_data) in &workers {
-        let empty = !own_data.exists()
-            || std::fs::read_dir(own_data).expect("dir").next().is_none();
+        let empty =
+            !own_data.exists() || std::fs::read_dir(own_data).expect("dir").next().is_none();
         assert!(empty, "a worker wrote into its data directory");
         assert!(!proc.log().contains("ERROR"), "{}", proc.log());
     }
@@ -381,12 +382,17 @@ fn a_killed_workers_job_goes_to_a_worker_with_the_right_dataset() {
     wait_until(
         "the worker with the differing copy refuses",
         Duration::from_secs(60),
-        || b.log().contains("differs from the one the server registered"),
+        || {
+            b.log()
+                .contains("differs from the one the server registered")
+        },
     );
     // Given back with the attempt it took returned: only the killed worker's attempt counts.
-    wait_until("the refused job is queued again", Duration::from_secs(10), || {
-        q.status() == "queued 1 -"
-    });
+    wait_until(
+        "the refused job is queued again",
+        Duration::from_secs(10),
+        || q.status() == "queued 1 -",
+    );
 
     let c = q.start_worker("c", &q.copy_for("c"), 2);
     let done = q.wait_done();
@@ -499,8 +505,10 @@ fn no_workers_no_evaluation(kind: Db) {
     // Longer than an idle worker's poll interval (2 s) and the job's evaluation together.
     std::thread::sleep(Duration::from_secs(4));
     assert_eq!(status_of(&db, &data, id), "queued 0 -", "{kind:?}");
-    assert!(!std::fs::read_to_string(data.join("server.log"))
-        .expect("log")
-        .contains("worker started"));
+    assert!(
+        !std::fs::read_to_string(data.join("server.log"))
+            .expect("log")
+            .contains("worker started")
+    );
 }
 both_databases!(no_workers_no_evaluation);

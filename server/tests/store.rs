@@ -219,7 +219,11 @@ fn submissions_queue_and_scores(kind: Db) {
         let file = store.submission_file("aaaa").await.unwrap().expect("file");
         assert_eq!((file.size, file.gzip), (1234, vec![31, 139, 8]));
         assert!(store.files_missing().await.unwrap().is_empty());
-        let job = store.claim("w1", 60_000, 3, &[]).await.unwrap().expect("a job");
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
         assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 1));
         assert!(store.claim("w2", 60_000, 3, &[]).await.unwrap().is_none());
         // Released by its worker, the job is queued again with no attempt spent; a worker
@@ -227,15 +231,36 @@ fn submissions_queue_and_scores(kind: Db) {
         assert!(!store.release(id, "w2").await.unwrap());
         assert!(store.release(id, "w1").await.unwrap());
         let back = store.submission(id).await.unwrap().unwrap();
-        assert_eq!((back.status, back.attempts, back.started_at), (Status::Queued, 0, None));
-        assert!(store.claim("w2", 60_000, 3, &[ds.id]).await.unwrap().is_none());
+        assert_eq!(
+            (back.status, back.attempts, back.started_at),
+            (Status::Queued, 0, None)
+        );
+        assert!(
+            store
+                .claim("w2", 60_000, 3, &[ds.id])
+                .await
+                .unwrap()
+                .is_none()
+        );
         // Queued again after a service failure, the attempt stays counted.
-        let job = store.claim("w1", 60_000, 3, &[]).await.unwrap().expect("a job");
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
         assert!(store.requeue(id, "w1", "disk full").await.unwrap());
-        let job2 = store.claim("w1", 60_000, 3, &[]).await.unwrap().expect("a job");
+        let job2 = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
         assert_eq!((job.attempts, job2.attempts), (1, 2));
         assert!(store.release(id, "w1").await.unwrap());
-        let job = store.claim("w1", 60_000, 3, &[]).await.unwrap().expect("a job");
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
         assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 2));
         assert!(store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap());
         assert!(!store.heartbeat(id, "w2", 60_000, 0.5).await.unwrap());

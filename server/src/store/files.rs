@@ -65,8 +65,6 @@ impl Store {
         )
         .fetch_all(&self.pool)
         .await?;
-        rows.iter()
-            .map(|r| Ok(r.try_get("file_sha256")?))
-            .collect()
+        rows.iter().map(|r| Ok(r.try_get("file_sha256")?)).collect()
     }
 }
