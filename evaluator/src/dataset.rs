@@ -553,7 +553,7 @@ fn models_info_path(root: &Path, models_dir: &Path) -> PathBuf {
 }
 
 fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
-    read_id_map::<RawModelInfo>(&path, "an object")?
+    read_id_map::<RawModelInfo>(path, "an object")?
         .into_iter()
         .map(|(id, raw)| {
             let place = format!("object \"{id}\"");
@@ -564,7 +564,7 @@ fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
                 .map(|(i, m)| {
                     fixed(
                         m,
-                        &path,
+                        path,
                         format_args!("{place}, symmetry {i}"),
                         "symmetries_discrete",
                     )
@@ -577,8 +577,8 @@ fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
                 .map(|(i, s)| {
                     let at = format!("{place}, continuous symmetry {i}");
                     Ok(ContinuousSymmetry {
-                        axis: fixed(&s.axis, &path, &at, "axis")?,
-                        offset: fixed(&s.offset, &path, &at, "offset")?,
+                        axis: fixed(&s.axis, path, &at, "axis")?,
+                        offset: fixed(&s.offset, path, &at, "offset")?,
                     })
                 })
                 .collect::<Result<Vec<_>>>()?;
