@@ -344,7 +344,7 @@ fn three_workers_share_the_queue_of_a_stopped_server() {
             .or_insert_with(|| cli_report(&dataset, file, "bop19")["bop19_average_recall"].clone());
         assert_eq!(
             stored_scores(&db, &data, *id),
-            [expected.clone()],
+            std::slice::from_ref(expected),
             "submission {id}"
         );
     }
