@@ -149,6 +149,11 @@ pub struct Dataset {
     pub targets: Vec<Target>,
     /// (width, height) in pixels.
     pub image_size: (u32, u32),
+    /// The files read for the targets and the objects' information.
+    pub targets_path: PathBuf,
+    pub models_info_path: PathBuf,
+    /// `models_eval` when present, else `models`: where the meshes are read from.
+    pub models_dir: PathBuf,
 }
 
 /// A depth image in millimetres; 0 means no measurement.
@@ -181,7 +186,8 @@ impl Dataset {
             .into_iter()
             .find(|d| d.is_dir())
             .unwrap_or_else(|| root.join("models"));
-        let infos = load_models_info(root, &models_dir)?;
+        let models_info_path = models_info_path(root, &models_dir);
+        let infos = load_models_info(&models_info_path)?;
 
         let scene_ids: BTreeSet<u32> = targets.iter().map(|t| t.scene_id).collect();
         let scenes = scene_ids
@@ -246,9 +252,47 @@ impl Dataset {
             scenes,
             targets,
             image_size: (0, 0),
+            targets_path,
+            models_info_path,
+            models_dir,
         };
         dataset.image_size = dataset.find_image_size()?;
         Ok(dataset)
+    }
+
+    /// Every file whose content decides this dataset's scores, each once, in a fixed order: the
+    /// targets file, the objects' information and meshes, the camera files of the dataset's
+    /// folder (they give the image size), the ground-truth files of the target scenes and the
+    /// depth images of the target images. RGB images, masks and other splits are not among
+    /// them: they change no score.
+    pub fn score_files(&self) -> Result<Vec<PathBuf>> {
+        let mut files = vec![self.targets_path.clone(), self.models_info_path.clone()];
+        files.extend(
+            self.objects
+                .keys()
+                .map(|id| self.models_dir.join(format!("obj_{id:06}.ply"))),
+        );
+        let mut cameras = Vec::new();
+        for entry in std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))? {
+            let entry = entry.map_err(|e| Error::io(&self.root, e))?;
+            let name = entry.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with("camera") && name.ends_with(".json") {
+                cameras.push(entry.path());
+            }
+        }
+        cameras.sort();
+        files.extend(cameras);
+        for &scene_id in self.scenes.keys() {
+            let dir = scene_dir(&self.split_dir, scene_id);
+            for name in ["scene_camera.json", "scene_gt.json", "scene_gt_info.json"] {
+                files.push(dir.join(name));
+            }
+        }
+        let images: BTreeSet<(u32, u32)> =
+            self.targets.iter().map(|t| (t.scene_id, t.im_id)).collect();
+        files.extend(images.into_iter().map(|(s, i)| self.depth_path(s, i)));
+        Ok(files)
     }
 
     pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
@@ -511,12 +555,18 @@ fn fixed<const N: usize>(
     })
 }
 
-fn load_models_info(root: &Path, models_dir: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
-    let mut path = models_dir.join("models_info.json");
-    if !path.is_file() {
-        path = root.join("models").join("models_info.json");
+/// `models_info.json` of the meshes' folder, else that of `models/`.
+fn models_info_path(root: &Path, models_dir: &Path) -> PathBuf {
+    let path = models_dir.join("models_info.json");
+    if path.is_file() {
+        path
+    } else {
+        root.join("models").join("models_info.json")
     }
-    read_id_map::<RawModelInfo>(&path, "an object")?
+}
+
+fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
+    read_id_map::<RawModelInfo>(path, "an object")?
         .into_iter()
         .map(|(id, raw)| {
             let place = format!("object \"{id}\"");
@@ -527,7 +577,7 @@ fn load_models_info(root: &Path, models_dir: &Path) -> Result<BTreeMap<u32, Mode
                 .map(|(i, m)| {
                     fixed(
                         m,
-                        &path,
+                        path,
                         format_args!("{place}, symmetry {i}"),
                         "symmetries_discrete",
                     )
@@ -540,8 +590,8 @@ fn load_models_info(root: &Path, models_dir: &Path) -> Result<BTreeMap<u32, Mode
                 .map(|(i, s)| {
                     let at = format!("{place}, continuous symmetry {i}");
                     Ok(ContinuousSymmetry {
-                        axis: fixed(&s.axis, &path, &at, "axis")?,
-                        offset: fixed(&s.offset, &path, &at, "offset")?,
+                        axis: fixed(&s.axis, path, &at, "axis")?,
+                        offset: fixed(&s.offset, path, &at, "offset")?,
                     })
                 })
                 .collect::<Result<Vec<_>>>()?;
@@ -864,6 +914,19 @@ mod tests {
         let r = image.gt[0].pose.r;
         assert!((r * r.transpose() - crate::math::Mat3::identity()).norm() < 1e-6);
         assert!(image.gt[0].pose.t.z > 100.0);
+    }
+
+    #[test]
+    fn score_files_are_the_files_read_and_the_target_depths() {
+        let d = reference();
+        let files = d.score_files().unwrap();
+        assert!(files.iter().all(|f| f.is_file()), "{files:?}");
+        assert_eq!(files[0], d.targets_path);
+        assert!(files.contains(&d.depth_path(1, 2)));
+        assert!(files.contains(&Path::new(REFERENCE).join("camera.json")));
+        let unique: BTreeSet<&PathBuf> = files.iter().collect();
+        assert_eq!(unique.len(), files.len(), "each file once");
+        assert!(!files.iter().any(|f| f.to_string_lossy().contains("rgb")));
     }
 
     #[test]

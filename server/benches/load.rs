@@ -461,6 +461,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             image_height: reference.image_size.1 as i64,
             added_at: 0,
             retired: false,
+            content_hash: None,
         })
         .await?;
     let owner = store
@@ -499,6 +500,8 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             file_name: "m_synthA-test.csv",
             file_sha256: &sha,
             file_size: 1000,
+            // Never read: these jobs are finished with scaled reports, not evaluated.
+            file_gzip: &[],
             estimates_count: 100,
             hardware: &hardware,
             preflight: &preflight,
@@ -507,7 +510,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             return Err("a new submission".into());
         };
         let job = store
-            .claim("populate", 60_000, 3)
+            .claim("populate", 60_000, 3, &[])
             .await?
             .ok_or("the job just queued")?;
         let f = 0.4 + 0.6 * (i as f64 / BOARD_SUBMISSIONS as f64);

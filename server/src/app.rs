@@ -11,31 +11,56 @@ use tokio::sync::{Mutex, Notify};
 use crate::board_cache::BoardCache;
 use crate::config::Config;
 use crate::dataset_config::{folder_options, is_dataset_folder};
+use crate::dataset_hash;
 use crate::error::{AppError, AppResult};
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
+use crate::uploaded_file;
 
 pub struct App {
     pub store: Store,
     pub config: Config,
+    pub role: Role,
     /// Wakes idle workers when a submission is queued (the database stays the truth).
     pub wake: Notify,
     /// The evaluation threads; handlers never evaluate on the async runtime.
     pub pool: rayon::ThreadPool,
     /// Rendered leaderboards, shared by every reader.
     pub boards: BoardCache,
-    datasets: Mutex<HashMap<i64, Arc<Dataset>>>,
+    datasets: Mutex<HashMap<i64, Loaded>>,
+}
+
+/// What a process is: the server owns the datasets table and the uploads; a worker process
+/// (`poseboard worker`, possibly on another machine) only evaluates, from its own copies of the
+/// datasets, and never writes a dataset's row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    Server,
+    Worker,
+}
+
+/// A dataset loaded by this process, with the content hash of its files here.
+#[derive(Clone)]
+pub struct Loaded {
+    pub dataset: Arc<Dataset>,
+    pub content_hash: String,
 }
 
 pub type AppState = Arc<App>;
 
 impl App {
-    /// Connects and migrates the database, registers the datasets of the datasets directory,
-    /// and returns the state.
-    pub async fn start(config: Config) -> anyhow::Result<AppState> {
+    /// Connects and migrates the database and returns the state; the server also registers
+    /// the datasets of its datasets directory and moves uploads older versions kept on disk
+    /// into the database.
+    pub async fn start(config: Config, role: Role) -> anyhow::Result<AppState> {
         crate::metrics::install()?;
-        std::fs::create_dir_all(&config.data_dir)?;
-        std::fs::create_dir_all(config.submissions_dir())?;
+        if role == Role::Server || config.database_url.is_none() {
+            // The SQLite file lives there; a remote worker needs no directory at all.
+            std::fs::create_dir_all(&config.data_dir)?;
+        }
+        if role == Role::Server {
+            std::fs::create_dir_all(config.submissions_dir())?;
+        }
         let store = Store::connect(&config.database_url()).await?;
         store.migrate().await?;
         let mut pool = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("eval-{i}"));
@@ -50,11 +75,22 @@ impl App {
             store,
             boards,
             config,
+            role,
             wake: Notify::new(),
             pool: pool.build()?,
             datasets: Mutex::new(HashMap::new()),
         });
-        app.register_datasets().await?;
+        if role == Role::Server {
+            app.register_datasets().await?;
+            let imported =
+                uploaded_file::import_legacy(&app.store, &app.config.submissions_dir()).await?;
+            if imported > 0 {
+                tracing::info!(
+                    files = imported,
+                    "uploads kept on disk moved into the database"
+                );
+            }
+        }
         Ok(app)
     }
 
@@ -89,36 +125,64 @@ impl App {
         Ok(())
     }
 
-    /// Loads the BOP dataset in `folder` and registers it (a retired one stays retired).
+    /// Loads the BOP dataset in `folder` and registers it with its content hash (a retired one
+    /// stays retired).
     pub async fn register_dataset(&self, folder: &Path) -> AppResult<DatasetRow> {
-        let path = folder.to_path_buf();
-        let ds = tokio::task::spawn_blocking(move || load(&path))
-            .await
-            .map_err(|e| AppError::Internal(e.to_string()))?
+        let loaded = self
+            .load(folder.to_path_buf())
+            .await?
             .map_err(|e| AppError::BadRequest(format!("not a usable BOP dataset: {e}")))?;
-        let row = self.store.register_dataset(&describe(&ds, folder)).await?;
-        self.datasets.lock().await.insert(row.id, Arc::new(ds));
+        let mut row = describe(&loaded.dataset, folder);
+        row.content_hash = Some(loaded.content_hash.clone());
+        let row = self.store.register_dataset(&row).await?;
+        self.datasets.lock().await.insert(row.id, loaded);
         Ok(row)
     }
 
     /// The loaded dataset of a registered id (loaded from disk on first use by this process).
     pub async fn dataset(&self, row: &DatasetRow) -> AppResult<Arc<Dataset>> {
-        if let Some(ds) = self.datasets.lock().await.get(&row.id) {
-            return Ok(ds.clone());
-        }
-        let path = PathBuf::from(&row.path);
-        let ds = tokio::task::spawn_blocking(move || load(&path))
-            .await
-            .map_err(|e| AppError::Internal(e.to_string()))?
-            .map_err(|e| AppError::Internal(format!("dataset {}: {e}", row.name)))?;
-        let ds = Arc::new(ds);
-        self.datasets.lock().await.insert(row.id, ds.clone());
-        Ok(ds)
+        Ok(self.loaded(row).await?.dataset)
     }
 
-    /// Where an uploaded file with this content hash is kept.
-    pub fn stored_file(&self, sha256: &str) -> PathBuf {
-        self.config.submissions_dir().join(format!("{sha256}.csv"))
+    /// The dataset of a registered row as this process has it, with the content hash of its
+    /// files here: the server reads the folder it registered, a worker the folder of that name
+    /// in its own datasets directory.
+    pub async fn loaded(&self, row: &DatasetRow) -> AppResult<Loaded> {
+        if let Some(loaded) = self.datasets.lock().await.get(&row.id) {
+            return Ok(loaded.clone());
+        }
+        let folder = match self.role {
+            Role::Server => PathBuf::from(&row.path),
+            Role::Worker => self.config.datasets_dir().join(&row.name),
+        };
+        let loaded = self.load(folder.clone()).await?.map_err(|e| {
+            AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
+        })?;
+        self.datasets.lock().await.insert(row.id, loaded.clone());
+        Ok(loaded)
+    }
+
+    /// Forgets a loaded dataset, so that the next use reads the folder again (a worker whose
+    /// copy was refused looks again later, once an operator may have fixed it).
+    pub async fn forget_dataset(&self, id: i64) {
+        self.datasets.lock().await.remove(&id);
+    }
+
+    /// Loads and hashes the dataset in `folder` on the evaluation threads.
+    async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, String>> {
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        self.pool.spawn(move || {
+            let loaded = load(&folder).and_then(|ds| {
+                let content_hash = dataset_hash::content_hash(&ds)?;
+                Ok(Loaded {
+                    dataset: Arc::new(ds),
+                    content_hash,
+                })
+            });
+            let _ = tx.send(loaded);
+        });
+        rx.await
+            .map_err(|_| AppError::Internal("loading a dataset crashed".into()))
     }
 }
 
@@ -142,5 +206,6 @@ fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
         image_height: ds.image_size.1 as i64,
         added_at: 0,
         retired: false,
+        content_hash: None,
     }
 }

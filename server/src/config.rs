@@ -12,13 +12,15 @@ pub struct Config {
     #[arg(long, env = "POSEBOARD_DATA_DIR", default_value = "poseboard-data")]
     pub data_dir: PathBuf,
     /// Directory whose subfolders are BOP datasets to serve (default: DATA_DIR/datasets, where
-    /// a demo dataset is generated on first start).
+    /// a demo dataset is generated on first start). A worker reads its copies from here, by
+    /// dataset name, and never writes to it.
     #[arg(long, env = "POSEBOARD_DATASETS")]
     pub datasets: Option<PathBuf>,
     /// `postgres://...` to use PostgreSQL; default: SQLite in the data directory.
     #[arg(long, env = "DATABASE_URL", hide_env_values = true)]
     pub database_url: Option<String>,
-    /// Evaluation workers in this process.
+    /// Evaluation workers in this process (`serve --workers 0`: none, the server only takes
+    /// uploads and `poseboard worker` processes evaluate).
     #[arg(long, env = "POSEBOARD_WORKERS", default_value_t = 1)]
     pub workers: usize,
     /// Threads of the evaluation pool. Default: every core for `poseboard worker`; one core

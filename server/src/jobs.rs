@@ -4,31 +4,62 @@
 //! restart) stops renewing; once its lease expires any worker, in this process or on another
 //! machine sharing the PostgreSQL database, takes the job up again. The in-process `Notify`
 //! only wakes idle workers early.
+//!
+//! A worker reads the uploaded file from the database and the dataset from its own copy, which
+//! must hash as the copy the server registered did: a worker whose copy differs (or is missing)
+//! gives the job back without spending an attempt and leaves that dataset's jobs to others for
+//! a while. Faults of the service are retried: a database call that fails for a lost connection
+//! is tried again with backoff (a finished evaluation's scores are never dropped for that), an
+//! evaluation that fails for the service's reasons is tried again in place with backoff, and
+//! only then counts as an attempt. On SIGINT or SIGTERM the running evaluation is cancelled and
+//! its job released at once.
 
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::future::Future;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Progress, Report, evaluate, results};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
-use crate::app::AppState;
+use crate::app::{AppState, Role};
+use crate::shutdown::Shutdown;
+use crate::store::StoreResult;
 use crate::store::submissions::{Fault, SubmissionRow};
+use crate::uploaded_file;
 
 /// How often an idle worker looks at the queue without being woken.
 const POLL: Duration = Duration::from_secs(2);
 /// A job failing this many times for the service's reasons (e.g. its worker died each time)
 /// is marked failed instead of being retried forever.
 const MAX_ATTEMPTS: i64 = 3;
+/// Tries of an evaluation within one attempt when it fails for the service's reasons, and the
+/// pause before the first retry (doubled each time).
+const TRIES_IN_PLACE: u32 = 3;
+const FIRST_BACKOFF: Duration = Duration::from_secs(1);
+/// Longest pause between two tries of a database call that lost its connection.
+const MAX_STORE_BACKOFF: Duration = Duration::from_secs(5);
+/// How long a worker leaves the jobs of a dataset it refused before it looks at its copy again.
+const REFUSAL_PAUSE: Duration = Duration::from_secs(300);
+/// How long a stopping worker keeps trying to give its job back.
+const RELEASE_GRACE: Duration = Duration::from_secs(5);
 
-pub fn spawn_workers(app: &AppState) -> Vec<JoinHandle<()>> {
-    (0..app.config.workers.max(1))
+/// Starts `app.config.workers` workers (none for `serve --workers 0`); each ends once
+/// `shutdown` is set, after giving back the job it was running.
+pub fn spawn_workers(app: &AppState, shutdown: &Shutdown) -> Vec<JoinHandle<()>> {
+    let refused = Arc::new(Refused::default());
+    (0..app.config.workers)
         .map(|n| {
-            let app = app.clone();
-            let id = format!("{}-{}-{n}", host_name(), std::process::id());
-            tokio::spawn(async move { worker_loop(app, id).await })
+            let worker = Worker {
+                app: app.clone(),
+                id: format!("{}-{}-{n}", host_name(), std::process::id()),
+                refused: refused.clone(),
+                shutdown: shutdown.clone(),
+            };
+            tokio::spawn(async move { worker.run().await })
         })
         .collect()
 }
@@ -41,33 +72,385 @@ fn host_name() -> String {
         .unwrap_or_else(|| "worker".to_string())
 }
 
-async fn worker_loop(app: AppState, worker: String) {
-    tracing::info!(%worker, "worker started");
-    loop {
-        // Register interest before looking, so a wake-up between the two is not lost.
-        let notified = app.wake.notified();
-        tokio::pin!(notified);
-        notified.as_mut().enable();
-        match app
-            .store
-            .claim(&worker, app.config.lease_ms(), MAX_ATTEMPTS)
-            .await
-        {
-            Ok(Some(job)) => {
-                let span = tracing::info_span!("job", submission = job.id, attempt = job.attempts);
-                run_job(&app, &worker, job).instrument(span).await
-            }
-            Ok(None) => {
-                tokio::select! {
-                    _ = &mut notified => {}
-                    _ = tokio::time::sleep(POLL) => {}
+/// Datasets this process's workers refused, with when: their jobs are not claimed until
+/// [`REFUSAL_PAUSE`] has passed.
+#[derive(Default)]
+struct Refused(Mutex<HashMap<i64, Instant>>);
+
+impl Refused {
+    fn add(&self, dataset_id: i64) {
+        if let Ok(mut map) = self.0.lock() {
+            map.insert(dataset_id, Instant::now());
+        }
+    }
+
+    /// The datasets to leave alone now.
+    fn current(&self) -> Vec<i64> {
+        let Ok(mut map) = self.0.lock() else {
+            return Vec::new();
+        };
+        map.retain(|_, at| at.elapsed() < REFUSAL_PAUSE);
+        map.keys().copied().collect()
+    }
+}
+
+struct Worker {
+    app: AppState,
+    id: String,
+    refused: Arc<Refused>,
+    shutdown: Shutdown,
+}
+
+/// How a job ended for this worker.
+enum JobError {
+    /// The file's fault: shown to the user as the reason.
+    User(String),
+    /// The service's fault: does not count against the user.
+    Service(String),
+    /// This worker cannot serve the job's dataset (its copy differs or is missing).
+    Refused(String),
+    /// Another worker owns the job now.
+    TakenOver,
+    /// The process is stopping.
+    Stopped,
+}
+
+impl Worker {
+    async fn run(self) {
+        let worker = &self.id;
+        tracing::info!(%worker, "worker started");
+        let app = &self.app;
+        while !self.shutdown.is_set() {
+            // Register interest before looking, so a wake-up between the two is not lost.
+            let notified = app.wake.notified();
+            tokio::pin!(notified);
+            notified.as_mut().enable();
+            let skip = self.refused.current();
+            match app
+                .store
+                .claim(worker, app.config.lease_ms(), MAX_ATTEMPTS, &skip)
+                .await
+            {
+                Ok(Some(job)) => {
+                    let span =
+                        tracing::info_span!("job", submission = job.id, attempt = job.attempts);
+                    self.run_job(job).instrument(span).await
+                }
+                Ok(None) => {
+                    tokio::select! {
+                        _ = &mut notified => {}
+                        _ = tokio::time::sleep(POLL) => {}
+                        _ = self.shutdown.wait() => {}
+                    }
+                }
+                Err(e) => {
+                    tracing::error!(%worker, error = %e, "cannot read the queue");
+                    tokio::select! {
+                        _ = tokio::time::sleep(POLL) => {}
+                        _ = self.shutdown.wait() => {}
+                    }
                 }
             }
-            Err(e) => {
-                tracing::error!(%worker, error = %e, "cannot read the queue");
-                tokio::time::sleep(POLL).await;
+        }
+        tracing::info!(%worker, "worker stopped");
+    }
+
+    async fn run_job(&self, job: SubmissionRow) {
+        let (app, worker) = (&self.app, self.id.as_str());
+        tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
+        let timer = crate::metrics::job_started(job.attempts);
+        let job_state = JobState::new(job.protocols.len());
+        let beat = self.heartbeat(job.id, &job_state);
+        let outcome = tokio::select! {
+            outcome = self.evaluate_with_retries(&job, &job_state) => outcome,
+            _ = self.shutdown.wait() => Err(JobError::Stopped),
+        };
+        // Whatever still runs on the evaluation threads stops at its next image.
+        job_state.cancel.store(true, Ordering::Relaxed);
+        beat.abort();
+        let id = job.id;
+        // What the metrics count once stored: estimates evaluated for a done job, nothing for
+        // a failed one; a job handed back to the queue has not ended.
+        let ending = match &outcome {
+            Ok(reports) => Some(Some(
+                reports.iter().map(|r| r.estimates_evaluated as u64).sum(),
+            )),
+            Err(JobError::User(_)) => Some(None),
+            Err(JobError::Service(_)) if job.attempts >= MAX_ATTEMPTS => Some(None),
+            Err(_) => None,
+        };
+        let stored = match outcome {
+            Ok(reports) => {
+                self.persist("store the scores", None, || {
+                    app.store.finish(id, worker, &reports)
+                })
+                .await
+            }
+            Err(JobError::User(msg)) => {
+                self.persist("store the failure", None, || {
+                    app.store.fail(id, worker, &msg, Fault::User)
+                })
+                .await
+            }
+            Err(JobError::Service(msg)) if job.attempts >= MAX_ATTEMPTS => {
+                tracing::error!(submission = id, error = %msg, "evaluation failed");
+                self.persist("store the failure", None, || {
+                    app.store.fail(id, worker, &msg, Fault::Service)
+                })
+                .await
+            }
+            Err(JobError::Service(msg)) => {
+                tracing::error!(submission = id, attempt = job.attempts, error = %msg, "evaluation failed: queued for another attempt");
+                let requeued = self
+                    .persist("queue the job again", None, || {
+                        app.store.requeue(id, worker, &msg)
+                    })
+                    .await;
+                app.wake.notify_waiters();
+                requeued
+            }
+            Err(JobError::Refused(msg)) => {
+                tracing::warn!(%worker, submission = id, dataset = %job.dataset, "{msg}; the job is left to other workers");
+                self.refused.add(job.dataset_id);
+                // The copy may be fixed by the time the pause is over: read it again then.
+                app.forget_dataset(job.dataset_id).await;
+                self.release(id).await
+            }
+            Err(JobError::Stopped) => {
+                let released = self.release(id).await;
+                if matches!(released, Ok(true)) {
+                    tracing::info!(submission = id, "stopping: job released to the queue");
+                }
+                return;
+            }
+            Err(JobError::TakenOver) => Ok(false),
+        };
+        if let (Ok(true), Some(evaluated)) = (&stored, ending) {
+            timer.ended(evaluated);
+        }
+        match stored {
+            Ok(true) => tracing::info!(submission = id, "job ended"),
+            Ok(false) => tracing::warn!(submission = id, "job was taken over; result discarded"),
+            Err(e) => tracing::error!(submission = id, error = %e, "cannot store the outcome"),
+        }
+    }
+
+    /// Gives the job back without spending an attempt, trying for a short while only: a
+    /// stopping process must not hang on a database that is gone (the lease then expires).
+    async fn release(&self, id: i64) -> StoreResult<bool> {
+        let deadline = Instant::now() + RELEASE_GRACE;
+        let released = self
+            .persist("release the job", Some(deadline), || {
+                self.app.store.release(id, &self.id)
+            })
+            .await;
+        self.app.wake.notify_waiters();
+        released
+    }
+
+    /// Runs a database call, trying again with growing pauses while it fails for a lost
+    /// connection, until it succeeds, fails otherwise, `deadline` passes, or (without a
+    /// deadline) the process stops.
+    async fn persist<T, F, Fut>(
+        &self,
+        what: &str,
+        deadline: Option<Instant>,
+        mut call: F,
+    ) -> StoreResult<T>
+    where
+        F: FnMut() -> Fut,
+        Fut: Future<Output = StoreResult<T>>,
+    {
+        let mut pause = Duration::from_millis(100);
+        loop {
+            match call().await {
+                Err(e) if e.is_transient() => {
+                    let out_of_time = match deadline {
+                        Some(d) => Instant::now() + pause > d,
+                        None => self.shutdown.is_set(),
+                    };
+                    if out_of_time {
+                        return Err(e);
+                    }
+                    tracing::warn!(error = %e, retry_in_ms = pause.as_millis() as u64, "cannot {what}: trying again");
+                    tokio::time::sleep(pause).await;
+                    pause = (pause * 2).min(MAX_STORE_BACKOFF);
+                }
+                other => return other,
             }
         }
+    }
+
+    /// Renews the lease and publishes progress until aborted; cancels the evaluation when
+    /// the job turns out to be another worker's.
+    fn heartbeat(&self, id: i64, state: &JobState) -> JoinHandle<()> {
+        let (app, worker) = (self.app.clone(), self.id.clone());
+        let (counter, started, cancel, taken) = (
+            state.counter.clone(),
+            state.started.clone(),
+            state.cancel.clone(),
+            state.taken_over.clone(),
+        );
+        let n = state.protocols;
+        tokio::spawn(async move {
+            let every =
+                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
+            loop {
+                tokio::time::sleep(every).await;
+                let progress = counter.fraction(n, started.load(Ordering::Relaxed) as usize);
+                match app
+                    .store
+                    .heartbeat(id, &worker, app.config.lease_ms(), progress)
+                    .await
+                {
+                    Ok(true) => {}
+                    Ok(false) => {
+                        // Someone else owns the job now: stop wasting the CPU on it.
+                        taken.store(true, Ordering::Relaxed);
+                        cancel.store(true, Ordering::Relaxed);
+                        return;
+                    }
+                    // The next beat tries again; a lease outlives two missed beats.
+                    Err(e) => tracing::warn!(submission = id, error = %e, "heartbeat failed"),
+                }
+            }
+        })
+    }
+
+    /// Evaluates, trying again with growing pauses when the service is at fault.
+    async fn evaluate_with_retries(
+        &self,
+        job: &SubmissionRow,
+        state: &JobState,
+    ) -> Result<Vec<Report>, JobError> {
+        let mut pause = FIRST_BACKOFF;
+        let mut tries = 1;
+        loop {
+            match self.evaluate_job(job, state).await {
+                Err(JobError::Service(msg)) if tries < TRIES_IN_PLACE => {
+                    tracing::warn!(submission = job.id, error = %msg, retry_in_ms = pause.as_millis() as u64, "evaluation failed: trying again");
+                    tokio::time::sleep(pause).await;
+                    pause *= 2;
+                    tries += 1;
+                    state.reset();
+                }
+                other => return other,
+            }
+        }
+    }
+
+    async fn evaluate_job(
+        &self,
+        job: &SubmissionRow,
+        state: &JobState,
+    ) -> Result<Vec<Report>, JobError> {
+        let app = &self.app;
+        let row = app
+            .store
+            .dataset(job.dataset_id)
+            .await
+            .map_err(|e| JobError::Service(e.to_string()))?
+            .ok_or_else(|| JobError::Service("the dataset is no longer registered".into()))?;
+        let loaded = match app.loaded(&row).await {
+            Ok(loaded) => loaded,
+            Err(e) if app.role == Role::Worker => {
+                return Err(JobError::Refused(format!(
+                    "this worker has no usable copy of dataset `{}` in {}: {e}",
+                    row.name,
+                    app.config.datasets_dir().display()
+                )));
+            }
+            Err(e) => return Err(JobError::Service(e.to_string())),
+        };
+        match &row.content_hash {
+            Some(registered) if *registered != loaded.content_hash => {
+                return Err(JobError::Refused(format!(
+                    "this worker's copy of dataset `{}` differs from the one the server \
+                     registered (content hash {} here, {registered} registered)",
+                    row.name, loaded.content_hash
+                )));
+            }
+            None if app.role == Role::Worker => {
+                return Err(JobError::Refused(format!(
+                    "dataset `{}` has no recorded content hash to check this worker's copy \
+                     against: start the server once so that it registers the dataset again",
+                    row.name
+                )));
+            }
+            _ => {}
+        }
+        let bytes =
+            uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &job.file_sha256)
+                .await
+                .map_err(|e| JobError::Service(e.to_string()))?;
+
+        let dataset = loaded.dataset;
+        let protocols: Vec<ProtocolName> = job.protocols.clone();
+        let (counter, started, cancel, taken) = (
+            state.counter.clone(),
+            state.started.clone(),
+            state.cancel.clone(),
+            state.taken_over.clone(),
+        );
+        let pool_app = app.clone();
+        tokio::task::spawn_blocking(move || {
+            pool_app.pool.install(|| {
+                let results = results::parse_results(&bytes[..])
+                    .map_err(|p| JobError::User(p.to_string()))?;
+                let mut reports = Vec::with_capacity(protocols.len());
+                for name in protocols {
+                    started.fetch_add(1, Ordering::Relaxed);
+                    let protocol = Protocol::named(name);
+                    let report = evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
+                        .map_err(|e| match e {
+                            evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
+                                JobError::TakenOver
+                            }
+                            evaluator::Error::Cancelled => JobError::Stopped,
+                            other => JobError::Service(other.to_string()),
+                        })?
+                        .report;
+                    reports.push(report);
+                }
+                Ok(reports)
+            })
+        })
+        .await
+        .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
+    }
+}
+
+/// What the evaluation threads and the heartbeat of one job share.
+struct JobState {
+    counter: Arc<Counter>,
+    /// Protocols started so far.
+    started: Arc<AtomicU64>,
+    protocols: usize,
+    /// Set to stop the evaluation at its next image.
+    cancel: Arc<AtomicBool>,
+    /// Set by the heartbeat when another worker owns the job.
+    taken_over: Arc<AtomicBool>,
+}
+
+impl JobState {
+    fn new(protocols: usize) -> JobState {
+        JobState {
+            counter: Arc::new(Counter {
+                done: AtomicU64::new(0),
+                total: AtomicU64::new(0),
+            }),
+            started: Arc::new(AtomicU64::new(0)),
+            protocols,
+            cancel: Arc::new(AtomicBool::new(false)),
+            taken_over: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    /// Progress starts again for another try.
+    fn reset(&self) {
+        self.counter.done.store(0, Ordering::Relaxed);
+        self.counter.total.store(0, Ordering::Relaxed);
+        self.started.store(0, Ordering::Relaxed);
     }
 }
 
@@ -101,123 +484,4 @@ impl Counter {
         let finished_share = started.saturating_sub(1) as f64 / protocols.max(1) as f64;
         (finished_share + current / protocols.max(1) as f64).clamp(0.0, 0.99)
     }
-}
-
-async fn run_job(app: &AppState, worker: &str, job: SubmissionRow) {
-    tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
-    let timer = crate::metrics::job_started(job.attempts);
-    let outcome = evaluate_job(app, worker, &job).await;
-    let evaluated = (outcome.as_ref().ok())
-        .map(|reports| reports.iter().map(|r| r.estimates_evaluated as u64).sum());
-    let stored = match outcome {
-        Ok(reports) => app.store.finish(job.id, worker, &reports).await,
-        Err(JobError::User(msg)) => app.store.fail(job.id, worker, &msg, Fault::User).await,
-        Err(JobError::Service(msg)) => {
-            tracing::error!(submission = job.id, error = %msg, "evaluation failed");
-            app.store.fail(job.id, worker, &msg, Fault::Service).await
-        }
-    };
-    if let Ok(true) = stored {
-        timer.ended(evaluated);
-    }
-    match stored {
-        Ok(true) => tracing::info!(submission = job.id, "evaluation finished"),
-        Ok(false) => tracing::warn!(submission = job.id, "job was taken over; result discarded"),
-        Err(e) => tracing::error!(submission = job.id, error = %e, "cannot store the outcome"),
-    }
-}
-
-enum JobError {
-    /// The file's fault: shown to the user as the reason.
-    User(String),
-    /// The service's fault: does not count against the user.
-    Service(String),
-}
-
-async fn evaluate_job(
-    app: &AppState,
-    worker: &str,
-    job: &SubmissionRow,
-) -> Result<Vec<Report>, JobError> {
-    let row = app
-        .store
-        .dataset(job.dataset_id)
-        .await
-        .map_err(|e| JobError::Service(e.to_string()))?
-        .ok_or_else(|| JobError::Service("the dataset is no longer served".into()))?;
-    let dataset = app
-        .dataset(&row)
-        .await
-        .map_err(|e| JobError::Service(e.to_string()))?;
-    let path = app.stored_file(&job.file_sha256);
-    let protocols: Vec<ProtocolName> = job.protocols.clone();
-
-    let counter = Arc::new(Counter {
-        done: AtomicU64::new(0),
-        total: AtomicU64::new(0),
-    });
-    let started = Arc::new(AtomicU64::new(0));
-    let cancel = Arc::new(AtomicBool::new(false));
-
-    // Heartbeat: renew the lease and publish progress until the evaluation ends.
-    let beat = {
-        let (app, worker, counter, started, cancel) = (
-            app.clone(),
-            worker.to_string(),
-            counter.clone(),
-            started.clone(),
-            cancel.clone(),
-        );
-        let (id, n) = (job.id, protocols.len());
-        tokio::spawn(async move {
-            let every =
-                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
-            loop {
-                tokio::time::sleep(every).await;
-                let progress = counter.fraction(n, started.load(Ordering::Relaxed) as usize);
-                match app
-                    .store
-                    .heartbeat(id, &worker, app.config.lease_ms(), progress)
-                    .await
-                {
-                    Ok(true) => {}
-                    Ok(false) => {
-                        // Someone else owns the job now: stop wasting the CPU on it.
-                        cancel.store(true, Ordering::Relaxed);
-                        return;
-                    }
-                    Err(e) => tracing::warn!(submission = id, error = %e, "heartbeat failed"),
-                }
-            }
-        })
-    };
-
-    let pool_app = app.clone();
-    let result = tokio::task::spawn_blocking(move || {
-        pool_app.pool.install(|| {
-            let results = results::load_results(&path).map_err(|e| match e {
-                evaluator::Error::Results(p) => JobError::User(p.to_string()),
-                other => JobError::Service(other.to_string()),
-            })?;
-            let mut reports = Vec::with_capacity(protocols.len());
-            for name in protocols {
-                started.fetch_add(1, Ordering::Relaxed);
-                let protocol = Protocol::named(name);
-                let report = evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
-                    .map_err(|e| match e {
-                        evaluator::Error::Cancelled => {
-                            JobError::Service("evaluation taken over by another worker".into())
-                        }
-                        other => JobError::Service(other.to_string()),
-                    })?
-                    .report;
-                reports.push(report);
-            }
-            Ok(reports)
-        })
-    })
-    .await
-    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))));
-    beat.abort();
-    result
 }

@@ -7,6 +7,7 @@ use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
 use crate::store::datasets::DatasetRow;
+use crate::uploaded_file;
 
 /// Applies a submission action (hide, unhide, rerun, delete) and records it.
 pub async fn submission_action(
@@ -26,7 +27,12 @@ pub async fn submission_action(
         AdminAction::Delete => match app.store.delete_submission(id).await? {
             Some(deleted) => {
                 if deleted.file_unused {
-                    let _ = tokio::fs::remove_file(app.stored_file(&deleted.file_sha256)).await;
+                    // The database copy went with the row; a disk copy of an older version goes too.
+                    let legacy = uploaded_file::legacy_path(
+                        &app.config.submissions_dir(),
+                        &deleted.file_sha256,
+                    );
+                    let _ = tokio::fs::remove_file(legacy).await;
                 }
                 true
             }

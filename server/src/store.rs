@@ -22,6 +22,7 @@ pub mod audit;
 pub mod board_version;
 pub mod copy;
 pub mod datasets;
+pub mod files;
 pub mod health;
 pub mod methods;
 pub mod queue;
@@ -77,6 +78,38 @@ impl From<sqlx::Error> for StoreError {
                 constraint: d.constraint().map(str::to_string),
             },
             _ => StoreError::Database(e),
+        }
+    }
+}
+
+impl StoreError {
+    /// Whether trying again may succeed: the connection was lost or refused (a restarting or
+    /// failing-over database, `pg_terminate_backend`), the pool ran dry, or the database asked
+    /// for a retry (serialization failure, deadlock, SQLite busy).
+    pub fn is_transient(&self) -> bool {
+        let StoreError::Database(e) = self else {
+            return false;
+        };
+        match e {
+            sqlx::Error::Io(_)
+            | sqlx::Error::Tls(_)
+            | sqlx::Error::Protocol(_)
+            | sqlx::Error::PoolTimedOut
+            | sqlx::Error::PoolClosed
+            | sqlx::Error::WorkerCrashed => true,
+            sqlx::Error::Database(d) => d.code().is_some_and(|code| {
+                // PostgreSQL: connection exceptions (08), operator intervention such as
+                // admin_shutdown (57P), serialization failure and deadlock (40001, 40P01).
+                // SQLite (codes of at most 4 digits, where PostgreSQL's have 5 characters):
+                // SQLITE_BUSY (5) and SQLITE_LOCKED (6), with their extended codes.
+                code.starts_with("08")
+                    || code.starts_with("57P")
+                    || code == "40001"
+                    || code == "40P01"
+                    || (code.len() <= 4
+                        && code.parse::<i64>().is_ok_and(|n| matches!(n & 0xff, 5 | 6)))
+            }),
+            _ => false,
         }
     }
 }

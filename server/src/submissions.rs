@@ -2,9 +2,9 @@
 //! file's dataset is the `dataset` field or, without it, the one its BOP name
 //! (`METHOD_DATASET-SPLIT.csv`) says, and the two must agree, since a file for the wrong
 //! dataset is the commonest mistake; the file is validated with the evaluator's parser (every
-//! problem with its line), checked for coverage against the dataset, stored under its content
-//! hash, and queued; the method (get or create), the duplicate check and the fair-use limit are
-//! decided with the insert in one transaction. An upload of several files (one per dataset)
+//! problem with its line), checked for coverage against the dataset, and stored compressed in
+//! the database under its content hash in the transaction that queues its job, together with
+//! the method (get or create), the duplicate check and the fair-use limit. An upload of several files (one per dataset)
 //! becomes one submission per file, and every file is checked before any is stored, so one bad
 //! file refuses them all. Callers hand over values already parsed at their edge (`MethodName`,
 //! `Visibility`, ...). A refused upload leaves no row behind.
@@ -26,6 +26,7 @@ use crate::preflight::Preflight;
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
 use crate::store::submissions::{Created, FairUse, NewSubmission, SubmissionRow};
+use crate::uploaded_file;
 
 /// Evaluation cost assumed per evaluated estimate and protocol, in seconds, for the estimate
 /// of the waiting time shown at upload.
@@ -291,10 +292,12 @@ async fn store(
         (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64) * SECONDS_PER_ESTIMATE;
     preflight.queue_position = app.store.queue_position(i64::MAX).await?;
 
-    // The file is in place before its job exists, so no worker can find the job without it.
-    let stored = app.stored_file(&file.sha256);
-    file.tmp
-        .persist(&stored)
+    // The file goes into the database with its job (compressed off the async threads), so
+    // any worker, on any machine, finds the two together.
+    let path = file.tmp.to_path_buf();
+    let gzip = tokio::task::spawn_blocking(move || uploaded_file::compress(&std::fs::read(path)?))
+        .await
+        .map_err(|e| AppError::Internal(e.to_string()))?
         .map_err(|e| AppError::Internal(format!("cannot store the upload: {e}")))?;
 
     let config = &app.config;
@@ -315,6 +318,7 @@ async fn store(
                 file_name: &file.name,
                 file_sha256: &file.sha256,
                 file_size: file.size as i64,
+                file_gzip: &gzip,
                 estimates_count: estimates_count as i64,
                 hardware,
                 preflight: &preflight,
@@ -329,9 +333,6 @@ async fn store(
         }
         Created::Duplicate(id) => (id, true),
         Created::Limited { times } => {
-            if !app.store.file_in_use(&file.sha256).await? {
-                let _ = tokio::fs::remove_file(&stored).await;
-            }
             return Err(over_limit(
                 config.submissions_per_window as usize,
                 config.limit_window_ms(),

@@ -172,6 +172,10 @@ fn administration(kind: Db) {
             .count(),
         0
     );
+    assert!(
+        common::column(&db, &data, "SELECT sha256 FROM submission_files").is_empty(),
+        "the database copy of the file went with it"
+    );
 
     let audit = get_as(&format!("{base}/api/v1/admin/audit"), &root)
         .json::<Value>()

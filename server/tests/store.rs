@@ -61,6 +61,7 @@ fn dataset_row(name: &str) -> DatasetRow {
         image_height: 480,
         added_at: 0,
         retired: false,
+        content_hash: Some("c0ffee".to_string()),
     }
 }
 
@@ -115,6 +116,7 @@ fn new_submission<'a>(
         file_name: "m_synthA-test.csv",
         file_sha256: sha,
         file_size: 1234,
+        file_gzip: &[31, 139, 8],
         estimates_count: 35,
         hardware: &f.hardware,
         preflight: &f.preflight,
@@ -213,12 +215,58 @@ fn submissions_queue_and_scores(kind: Db) {
         assert_eq!(store.estimates_ahead(i64::MAX).await.unwrap(), 35);
 
         // The queue: claim, heartbeat, finish only while the job is the worker's own.
-        let job = store.claim("w1", 60_000, 3).await.unwrap().expect("a job");
+        assert_eq!(ds.content_hash.as_deref(), Some("c0ffee"));
+        let file = store.submission_file("aaaa").await.unwrap().expect("file");
+        assert_eq!((file.size, file.gzip), (1234, vec![31, 139, 8]));
+        assert!(store.files_missing().await.unwrap().is_empty());
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
         assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 1));
-        assert!(store.claim("w2", 60_000, 3).await.unwrap().is_none());
+        assert!(store.claim("w2", 60_000, 3, &[]).await.unwrap().is_none());
+        // Released by its worker, the job is queued again with no attempt spent; a worker
+        // that skips its dataset leaves it alone.
+        assert!(!store.release(id, "w2").await.unwrap());
+        assert!(store.release(id, "w1").await.unwrap());
+        let back = store.submission(id).await.unwrap().unwrap();
+        assert_eq!(
+            (back.status, back.attempts, back.started_at),
+            (Status::Queued, 0, None)
+        );
+        assert!(
+            store
+                .claim("w2", 60_000, 3, &[ds.id])
+                .await
+                .unwrap()
+                .is_none()
+        );
+        // Queued again after a service failure, the attempt stays counted.
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
+        assert!(store.requeue(id, "w1", "disk full").await.unwrap());
+        let job2 = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
+        assert_eq!((job.attempts, job2.attempts), (1, 2));
+        assert!(store.release(id, "w1").await.unwrap());
+        let job = store
+            .claim("w1", 60_000, 3, &[])
+            .await
+            .unwrap()
+            .expect("a job");
+        assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 2));
         assert!(store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap());
         assert!(!store.heartbeat(id, "w2", 60_000, 0.5).await.unwrap());
         assert!(!store.finish(id, "w2", &reports).await.unwrap());
+        assert!(store.finish(id, "w1", &reports).await.unwrap());
+        // Finishing again (its first answer lost with the connection) is no second score set.
         assert!(store.finish(id, "w1", &reports).await.unwrap());
         let done = store.submission(id).await.unwrap().unwrap();
         assert_eq!((done.status, done.progress), (Status::Done, 1.0));
@@ -285,7 +333,7 @@ fn submissions_queue_and_scores(kind: Db) {
             ("aaaa", true)
         );
         assert!(store.delete_submission(id).await.unwrap().is_none());
-        assert!(!store.file_in_use("aaaa").await.unwrap());
+        assert!(store.submission_file("aaaa").await.unwrap().is_none());
     });
 }
 both_databases!(submissions_queue_and_scores);
@@ -573,7 +621,7 @@ fn board_version_follows_board_changes(kind: Db) {
         step!(
             false,
             "claimed",
-            store.claim("w1", 60_000, 3).await.unwrap()
+            store.claim("w1", 60_000, 3, &[]).await.unwrap()
         );
         step!(
             false,
@@ -620,7 +668,7 @@ fn board_version_follows_board_changes(kind: Db) {
         let job = step!(
             false,
             "claimed",
-            store.claim("w1", 60_000, 3).await.unwrap()
+            store.claim("w1", 60_000, 3, &[]).await.unwrap()
         );
         assert!(step!(
             false,

@@ -32,9 +32,7 @@ pub fn run(args: CopyDbArgs) -> anyhow::Result<()> {
             println!("{table:>18}  {rows} rows");
         }
         println!(
-            "copied into the {} database. Uploaded result files are kept outside the database, \
-             in DATA_DIR/submissions: copy that folder to the new data directory \
-             (e.g. `cp -a OLD_DATA_DIR/submissions NEW_DATA_DIR/`).",
+            "copied into the {} database, uploaded result files included.",
             target.backend().name()
         );
         Ok(())

@@ -5,12 +5,13 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand};
 
 use crate::accounts;
-use crate::app::App;
+use crate::app::{App, Role};
 use crate::config::{Config, ServeConfig};
 use crate::demo::{
     CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_results,
 };
 use crate::domain::{Password, TokenLabel, UserName};
+use crate::shutdown::Shutdown;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -66,7 +67,9 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
 
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
     crate::logging::init(args.config.common.log_format);
-    runtime()?.block_on(async move {
+    let rt = runtime()?;
+    let result = rt.block_on(async move {
+        let shutdown = Shutdown::on_signals()?;
         // The port first: a server that cannot have it stops before it touches anything (a
         // worker started earlier would claim a job and leave it to wait out its lease).
         let listener = tokio::net::TcpListener::bind(args.config.bind).await?;
@@ -75,31 +78,39 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         if demo {
             crate::demo_setup::ensure_demo_dataset(&config.datasets_dir()).await?;
         }
-        let app = App::start(config).await?;
+        let app = App::start(config, Role::Server).await?;
         if demo {
             crate::demo_setup::ensure_demo_submissions(&app).await?;
         }
-        crate::jobs::spawn_workers(&app);
+        let workers = crate::jobs::spawn_workers(&app, &shutdown);
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
         // Peer addresses feed the per-address sign-in limit.
         let service = crate::routes::router(app)
             .into_make_service_with_connect_info::<std::net::SocketAddr>();
+        let stop = shutdown.clone();
         axum::serve(listener, service)
-            .with_graceful_shutdown(async {
-                let _ = tokio::signal::ctrl_c().await;
-            })
+            .with_graceful_shutdown(async move { stop.wait().await })
             .await?;
+        join_all(workers).await;
         Ok(())
-    })
+    });
+    // An evaluation cancelled on a signal stops at its next image; nothing waits for it.
+    rt.shutdown_timeout(std::time::Duration::from_secs(1));
+    result
 }
 
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
     crate::logging::init(args.config.log_format);
-    runtime()?.block_on(async move {
-        // Workers never generate demo data; the server that owns the datasets does.
-        let app = App::start(args.config).await?;
+    if args.config.workers == 0 {
+        anyhow::bail!("--workers must be at least 1 for `poseboard worker`");
+    }
+    let rt = runtime()?;
+    let result = rt.block_on(async move {
+        let shutdown = Shutdown::on_signals()?;
+        // A worker only evaluates: it registers no dataset and needs no upload folder.
+        let app = App::start(args.config, Role::Worker).await?;
         if let Some(addr) = args.metrics_bind {
             let listener = tokio::net::TcpListener::bind(addr).await?;
             println!(
@@ -108,16 +119,14 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
             );
             tokio::spawn(crate::routes::ops::serve_alone(app.clone(), listener));
         }
-        let handles = crate::jobs::spawn_workers(&app);
-        tokio::select! {
-            _ = tokio::signal::ctrl_c() => {}
-            _ = futures_join(handles) => {}
-        }
+        join_all(crate::jobs::spawn_workers(&app, &shutdown)).await;
         Ok(())
-    })
+    });
+    rt.shutdown_timeout(std::time::Duration::from_secs(1));
+    result
 }
 
-async fn futures_join(handles: Vec<tokio::task::JoinHandle<()>>) {
+async fn join_all(handles: Vec<tokio::task::JoinHandle<()>>) {
     for h in handles {
         let _ = h.await;
     }

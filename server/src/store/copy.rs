@@ -21,6 +21,7 @@ const TABLES: &[&str] = &[
     "datasets",
     "methods",
     "submissions",
+    "submission_files",
     "scores",
     "object_scores",
     "api_tokens",

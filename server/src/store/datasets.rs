@@ -24,6 +24,10 @@ pub struct DatasetRow {
     pub image_height: i64,
     pub added_at: i64,
     pub retired: bool,
+    /// Hash of the files that decide the scores, as the server that registered it read them
+    /// (`None` for a dataset not registered again since the hash was introduced).
+    #[serde(skip)]
+    pub content_hash: Option<String>,
 }
 
 fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
@@ -40,6 +44,7 @@ fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
         image_height: row.try_get("image_height")?,
         added_at: row.try_get("added_at")?,
         retired: row.try_get::<i64, _>("retired")? != 0,
+        content_hash: row.try_get("content_hash")?,
     })
 }
 
@@ -50,13 +55,13 @@ impl Store {
         let mut tx = self.write_transaction().await?;
         let row = sqlx::query(
             "INSERT INTO datasets (name, path, objects_count, scenes_count, images_count, \
-             targets_count, instances_count, image_width, image_height, added_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) \
+             targets_count, instances_count, image_width, image_height, added_at, content_hash) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) \
              ON CONFLICT (name) DO UPDATE SET path = excluded.path, \
              objects_count = excluded.objects_count, scenes_count = excluded.scenes_count, \
              images_count = excluded.images_count, targets_count = excluded.targets_count, \
              instances_count = excluded.instances_count, image_width = excluded.image_width, \
-             image_height = excluded.image_height \
+             image_height = excluded.image_height, content_hash = excluded.content_hash \
              RETURNING *",
         )
         .bind(&d.name)
@@ -69,6 +74,7 @@ impl Store {
         .bind(d.image_width)
         .bind(d.image_height)
         .bind(now_ms())
+        .bind(&d.content_hash)
         .fetch_one(&mut *tx)
         .await?;
         let row = dataset(&row)?;

@@ -14,13 +14,15 @@ use crate::clock::now_ms;
 
 impl Store {
     /// Takes the oldest queued submission, or one whose worker's lease expired, for `worker`
-    /// for `lease_ms`. Submissions that failed `max_attempts` times for the service's reasons
-    /// are marked failed instead of being retried forever.
+    /// for `lease_ms`, leaving those of the datasets in `skip` (which this worker cannot serve)
+    /// to others. Submissions that failed `max_attempts` times for the service's reasons are
+    /// marked failed instead of being retried forever.
     pub async fn claim(
         &self,
         worker: &str,
         lease_ms: i64,
         max_attempts: i64,
+        skip: &[i64],
     ) -> StoreResult<Option<SubmissionRow>> {
         let now = now_ms();
         sqlx::query(
@@ -37,19 +39,28 @@ impl Store {
             // SQLite runs one writer at a time, so the subquery and the update are atomic.
             Backend::Sqlite => "",
         };
+        // One placeholder per skipped dataset; only the count comes from the caller.
+        let skipped = if skip.is_empty() {
+            String::new()
+        } else {
+            let marks: Vec<String> = (0..skip.len()).map(|i| format!("${}", i + 4)).collect();
+            format!(" AND dataset_id NOT IN ({})", marks.join(", "))
+        };
         let sql = format!(
             "UPDATE submissions SET status = 'running', worker = $1, lease_until = $2, \
              attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = 0 \
-             WHERE id = (SELECT id FROM submissions WHERE status = 'queued' \
-             OR (status = 'running' AND lease_until < $3) ORDER BY id LIMIT 1{lock}) \
+             WHERE id = (SELECT id FROM submissions WHERE (status = 'queued' \
+             OR (status = 'running' AND lease_until < $3)){skipped} ORDER BY id LIMIT 1{lock}) \
              RETURNING id"
         );
-        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+        let mut query = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(worker)
             .bind(now + lease_ms)
-            .bind(now)
-            .fetch_optional(&self.pool)
-            .await?;
+            .bind(now);
+        for id in skip {
+            query = query.bind(*id);
+        }
+        let row = query.fetch_optional(&self.pool).await?;
         match row {
             Some(row) => self.submission(row.try_get("id")?).await,
             None => Ok(None),
@@ -96,8 +107,18 @@ impl Store {
         .execute(&mut *tx)
         .await?;
         if updated.rows_affected() != 1 {
+            // Done by this very worker already: an earlier try committed, but its answer was
+            // lost with the connection.
+            let mine = sqlx::query(
+                "SELECT id FROM submissions WHERE id = $1 AND worker = $2 AND status = 'done'",
+            )
+            .bind(id)
+            .bind(worker)
+            .fetch_optional(&mut *tx)
+            .await?
+            .is_some();
             tx.rollback().await?;
-            return Ok(false);
+            return Ok(mine);
         }
         sqlx::query("DELETE FROM scores WHERE submission_id = $1")
             .bind(id)
@@ -179,6 +200,38 @@ impl Store {
         .bind(error)
         .bind(fault.as_str())
         .bind(now_ms())
+        .bind(id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Gives the job back to the queue without counting the attempt (this worker stops for
+    /// its own reasons: it is shutting down, or its copy of the dataset differs); false when it
+    /// is no longer this worker's.
+    pub async fn release(&self, id: i64, worker: &str) -> StoreResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
+             progress = 0, attempts = attempts - 1, \
+             started_at = CASE WHEN attempts <= 1 THEN NULL ELSE started_at END \
+             WHERE id = $1 AND worker = $2 AND status = 'running'",
+        )
+        .bind(id)
+        .bind(worker)
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Puts the job back to the queue for another try, the attempt counted (a failure of the
+    /// service that retrying in place did not cure); false when it is no longer this worker's.
+    pub async fn requeue(&self, id: i64, worker: &str, error: &str) -> StoreResult<bool> {
+        let done = sqlx::query(
+            "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
+             progress = 0, error = $1 WHERE id = $2 AND worker = $3 AND status = 'running'",
+        )
+        .bind(error)
         .bind(id)
         .bind(worker)
         .execute(&self.pool)

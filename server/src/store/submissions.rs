@@ -139,6 +139,8 @@ pub struct NewSubmission<'a> {
     pub file_name: &'a str,
     pub file_sha256: &'a str,
     pub file_size: i64,
+    /// The file itself, gzip-compressed: stored with the submission, for the workers.
+    pub file_gzip: &'a [u8],
     pub estimates_count: i64,
     pub hardware: &'a Hardware,
     pub preflight: &'a Preflight,
@@ -166,7 +168,8 @@ pub enum Created {
 #[derive(Debug, PartialEq)]
 pub struct Deleted {
     pub file_sha256: String,
-    /// No other submission has the same content, so the stored file can go.
+    /// No other submission had the same content: its database copy went with it, and a disk
+    /// copy an older version kept can go too.
     pub file_unused: bool,
 }
 
@@ -343,6 +346,8 @@ impl Store {
         .fetch_one(&mut *tx)
         .await?
         .try_get("id")?;
+        // In the same transaction: no worker can find the job without its file.
+        super::files::put_file(&mut tx, new.file_sha256, new.file_size, new.file_gzip).await?;
         tx.commit().await?;
         if meta_changed {
             self.board_changed();
@@ -389,15 +394,6 @@ impl Store {
     /// Whether any submission exists at all (the demo set-up runs on an empty service only).
     pub async fn has_submissions(&self) -> StoreResult<bool> {
         let row = sqlx::query("SELECT COUNT(*) AS n FROM submissions")
-            .fetch_one(&self.pool)
-            .await?;
-        Ok(row.try_get::<i64, _>("n")? > 0)
-    }
-
-    /// Whether any submission uses the stored file of this content hash.
-    pub async fn file_in_use(&self, sha256: &str) -> StoreResult<bool> {
-        let row = sqlx::query("SELECT COUNT(*) AS n FROM submissions WHERE file_sha256 = $1")
-            .bind(sha256)
             .fetch_one(&self.pool)
             .await?;
         Ok(row.try_get::<i64, _>("n")? > 0)
@@ -478,11 +474,18 @@ impl Store {
             .bind(&sha)
             .fetch_one(&mut *tx)
             .await?;
+        let file_unused = others.try_get::<i64, _>("n")? == 0;
+        if file_unused {
+            sqlx::query("DELETE FROM submission_files WHERE sha256 = $1")
+                .bind(&sha)
+                .execute(&mut *tx)
+                .await?;
+        }
         board_version::bump(&mut tx).await?;
         tx.commit().await?;
         self.board_changed();
         Ok(Some(Deleted {
-            file_unused: others.try_get::<i64, _>("n")? == 0,
+            file_unused,
             file_sha256: sha,
         }))
     }
