@@ -19,6 +19,7 @@ pub mod moderation;
 pub mod openapi;
 pub mod preflight;
 pub mod routes;
+pub mod serve;
 pub mod store;
 pub mod submissions;
 pub mod views;

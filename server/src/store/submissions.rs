@@ -427,6 +427,16 @@ impl Store {
         Ok(done.rows_affected() == 1)
     }
 
+    /// Makes a submission public or private; false when there is no such submission.
+    pub async fn set_visibility(&self, id: i64, visibility: Visibility) -> StoreResult<bool> {
+        let done = sqlx::query("UPDATE submissions SET public = $1 WHERE id = $2")
+            .bind(i64::from(visibility == Visibility::Public))
+            .bind(id)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
     /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
     /// until the new ones replace them. False when it is missing or not finished.
     pub async fn rerun(&self, id: i64) -> StoreResult<bool> {
