@@ -128,7 +128,11 @@ fn big_result_file(dir: &Path, name: &str, rows: usize) -> PathBuf {
     for i in 0..rows {
         let fields: Vec<&str> = estimates[i % estimates.len()].split(',').collect();
         let score = format!("{:.6}", 0.5 + (i % 1000) as f64 / 10_000.0);
-        out.push_str(&[&fields[..3], &[score.as_str()], &fields[4..]].concat().join(","));
+        out.push_str(
+            &[&fields[..3], &[score.as_str()], &fields[4..]]
+                .concat()
+                .join(","),
+        );
         out.push('\n');
     }
     let path = dir.join(name);
@@ -207,7 +211,8 @@ fn a_stalled_upload_is_cut_with_408() {
     );
     socket.write_all(head.as_bytes()).expect("a beginning");
     // Then nothing more.
-    let answer = String::from_utf8_lossy(&read_until_closed(socket, "a stalled upload")).to_string();
+    let answer =
+        String::from_utf8_lossy(&read_until_closed(socket, "a stalled upload")).to_string();
     assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
     assert!(
         answer.contains("at least 8 KiB every 2 s"),

@@ -66,10 +66,7 @@ fn parallel_uploads_keep_the_limit(kind: Db) {
     assert_eq!(limited.len(), 7, "{kind:?}: {statuses:?}");
     for body in limited {
         let error = body["error"].as_str().unwrap_or_default();
-        assert!(
-            error.contains("at most 5 submissions"),
-            "{kind:?}: {body}"
-        );
+        assert!(error.contains("at most 5 submissions"), "{kind:?}: {body}");
     }
     // All five under one method.
     let methods: std::collections::BTreeSet<String> = created

@@ -49,7 +49,10 @@ fn names_are_nfc(kind: Db) {
         );
         assert_eq!(r.status(), 202, "{kind:?} {name:?}");
         let body: Value = r.json().expect("json");
-        assert_eq!(body["submission"]["method"], COMPOSED, "{kind:?}: stored composed");
+        assert_eq!(
+            body["submission"]["method"], COMPOSED,
+            "{kind:?}: stored composed"
+        );
         methods.push(body["submission"]["method_id"].clone());
     }
     assert_eq!(methods[0], methods[1], "{kind:?}: one method, not two");
@@ -61,6 +64,9 @@ fn names_are_nfc(kind: Db) {
     assert_eq!(status, 409, "{kind:?}: {page}");
     assert!(page.contains("is taken"), "{kind:?}");
     let (status, _) = form(&browser(), &format!("{base}/login"), "Jose\u{301}");
-    assert_eq!(status, 303, "{kind:?}: signed in with the decomposed spelling");
+    assert_eq!(
+        status, 303,
+        "{kind:?}: signed in with the decomposed spelling"
+    );
 }
 both_databases!(names_are_nfc);
