@@ -11,7 +11,7 @@ use rand::RngCore;
 use sha2::{Digest, Sha256};
 
 use crate::clock::now_ms;
-use crate::domain::{Password, TokenLabel, UserName};
+use crate::domain::{Password, TokenLabel, UserName, normalized};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::{Counter, User};
 use crate::store::{Store, StoreError};
@@ -235,7 +235,10 @@ pub async fn sign_in(
     password: &str,
     addr: IpAddr,
 ) -> AppResult<Option<User>> {
-    let name = name.trim();
+    // As the name was stored: "é" typed either way signs in to one account and counts against
+    // one account's limit.
+    let name = normalized(name);
+    let name = name.as_str();
     let addr = addr.to_string();
     let addr_key = format!("signin-addr:{addr}");
     count_attempt(store, &addr_key, window_step(SIGN_IN_PER_ADDRESS)).await?;

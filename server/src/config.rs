@@ -3,6 +3,7 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::time::Duration;
 
 use clap::{Args, ValueEnum};
 
@@ -68,7 +69,68 @@ pub struct ServeConfig {
     #[arg(long, env = "POSEBOARD_BIND", default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
     #[command(flatten)]
+    pub http: HttpConfig,
+    #[command(flatten)]
     pub common: Config,
+}
+
+/// How long clients may take. Every bound is on what the client does (or fails to do), so a
+/// connection that sends nothing, or half a request, cannot hold a descriptor for ever; an
+/// upload is bounded by its progress rather than by a wall clock, so a slow but working link
+/// can send the largest file allowed.
+#[derive(Args, Clone, Debug)]
+pub struct HttpConfig {
+    /// Seconds a client has to send a request's headers, from its connection or its previous
+    /// request; a connection that takes longer is closed.
+    #[arg(long, env = "POSEBOARD_HEADER_TIMEOUT_SECS", default_value_t = 15,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub header_timeout_secs: u64,
+    /// Seconds a connection may pass without a byte either way before it is closed (a request
+    /// under way is answered first).
+    #[arg(long, env = "POSEBOARD_IDLE_TIMEOUT_SECS", default_value_t = 60,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub idle_timeout_secs: u64,
+    /// Seconds a request other than an upload may take to be answered.
+    #[arg(long, env = "POSEBOARD_REQUEST_TIMEOUT_SECS", default_value_t = 120,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub request_timeout_secs: u64,
+    /// An upload must keep delivering at least this many KiB every `--upload-window-secs`
+    /// (however long the whole upload takes); one that falls behind is refused with 408.
+    #[arg(long, env = "POSEBOARD_UPLOAD_MIN_KIB", default_value_t = 64,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub upload_min_kib: u64,
+    /// The window of `--upload-min-kib`, in seconds.
+    #[arg(long, env = "POSEBOARD_UPLOAD_WINDOW_SECS", default_value_t = 20,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub upload_window_secs: u64,
+}
+
+/// The progress an upload's body must keep making.
+#[derive(Clone, Copy, Debug)]
+pub struct ProgressRule {
+    pub min_bytes: u64,
+    pub window: Duration,
+}
+
+impl HttpConfig {
+    pub fn header_timeout(&self) -> Duration {
+        Duration::from_secs(self.header_timeout_secs)
+    }
+
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs(self.idle_timeout_secs)
+    }
+
+    pub fn request_timeout(&self) -> Duration {
+        Duration::from_secs(self.request_timeout_secs)
+    }
+
+    pub fn upload_progress(&self) -> ProgressRule {
+        ProgressRule {
+            min_bytes: self.upload_min_kib.saturating_mul(1024),
+            window: Duration::from_secs(self.upload_window_secs),
+        }
+    }
 }
 
 impl Config {

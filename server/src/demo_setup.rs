@@ -81,7 +81,7 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
                 ..MethodMeta::default()
             },
             hardware: Hardware::parse("demo data: times are made up")?,
-            visibility: Visibility::Public,
+            visibility: Some(Visibility::Public),
             files: vec![UploadedFile::from_bytes(
                 &app.config.submissions_dir(),
                 &name,

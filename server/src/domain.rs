@@ -6,6 +6,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
+use unicode_normalization::UnicodeNormalization;
 
 /// A value that does not parse, with the field it came from.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -36,9 +37,16 @@ fn is_invisible(c: char) -> bool {
         || matches!(c, '\u{200B}'..='\u{200F}' | '\u{202A}'..='\u{202E}' | '\u{2060}'..='\u{2064}' | '\u{2066}'..='\u{2069}' | '\u{FEFF}' | '\u{00AD}')
 }
 
-/// Trimmed text of 1 to `max` characters without control or invisible characters.
+/// Text as it is compared and stored: trimmed, in Unicode normal form C. "é" can be typed as
+/// one character or as "e" and a combining accent; both must name the same method or account,
+/// so they are made one before any check, lookup or insert.
+pub fn normalized(value: &str) -> String {
+    value.trim().nfc().collect()
+}
+
+/// Trimmed text of 1 to `max` characters without control or invisible characters, in NFC.
 fn plain_text(field: &'static str, value: &str, max: usize) -> Result<String, FieldError> {
-    let value = value.trim();
+    let value = normalized(value);
     if value.is_empty() {
         return Err(FieldError::new(field, "is required"));
     }
@@ -48,7 +56,7 @@ fn plain_text(field: &'static str, value: &str, max: usize) -> Result<String, Fi
             format!("must be at most {max} characters, without control or invisible characters"),
         ));
     }
-    Ok(value.to_string())
+    Ok(value)
 }
 
 macro_rules! text_newtype {
@@ -108,7 +116,7 @@ impl MethodName {
 
 impl UserName {
     pub fn parse(value: &str) -> Result<Self, FieldError> {
-        let name = value.trim();
+        let name = normalized(value);
         if name.is_empty() || name.chars().count() > 40 {
             return Err(FieldError::new("name", "must have 1 to 40 characters"));
         }
@@ -121,7 +129,7 @@ impl UserName {
                 "may contain letters, digits, `-`, `_` and `.`",
             ));
         }
-        Ok(UserName(name.to_string()))
+        Ok(UserName(name))
     }
 }
 
@@ -156,14 +164,14 @@ impl Link {
 
 impl Description {
     pub fn parse(value: &str) -> Result<Self, FieldError> {
-        let value = value.trim();
+        let value = normalized(value);
         if value.chars().count() > 10_000 {
             return Err(FieldError::new(
                 "description",
                 "must be at most 10000 characters",
             ));
         }
-        Ok(Description(value.to_string()))
+        Ok(Description(value))
     }
 }
 
@@ -276,6 +284,30 @@ mod tests {
         assert!(UserName::parse("alice b").is_err());
         assert!(UserName::parse("al\u{200D}ice").is_err());
         assert!(UserName::parse(&"a".repeat(41)).is_err());
+    }
+
+    #[test]
+    fn names_are_compared_in_normal_form_c() {
+        let (composed, decomposed) = ("Caf\u{e9}", "Cafe\u{301}");
+        assert_eq!(
+            MethodName::parse(decomposed).unwrap(),
+            MethodName::parse(composed).unwrap()
+        );
+        assert_eq!(MethodName::parse(decomposed).unwrap().as_str(), composed);
+        // A combining accent alone is no letter, but the account name it composes is valid.
+        assert_eq!(
+            UserName::parse("Jose\u{301}").unwrap(),
+            UserName::parse("Jos\u{e9}").unwrap()
+        );
+        assert_eq!(
+            TokenLabel::parse(" cafe\u{301} laptop ").unwrap().as_str(),
+            "caf\u{e9} laptop"
+        );
+        assert_eq!(Hardware::parse(decomposed).unwrap().as_str(), composed);
+        assert_eq!(Description::parse(decomposed).unwrap().as_str(), composed);
+        // Lengths count the stored characters: 100 accented letters typed decomposed fit.
+        assert!(MethodName::parse(&"e\u{301}".repeat(100)).is_ok());
+        assert_eq!(normalized(" A\u{30a} "), "\u{c5}");
     }
 
     #[test]

@@ -47,6 +47,9 @@ pub enum AppError {
     },
     #[error("the upload is larger than the limit of {limit} bytes")]
     TooLarge { limit: u64 },
+    /// The client took too long: a request past its time, or an upload that stopped progressing.
+    #[error("{0}")]
+    TimedOut(String),
     #[error("{0}")]
     Store(StoreError),
     #[error("{0}")]
@@ -93,6 +96,7 @@ impl AppError {
             AppError::BadRequest(_) => StatusCode::BAD_REQUEST,
             AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
+            AppError::TimedOut(_) => StatusCode::REQUEST_TIMEOUT,
             AppError::Store(_) | AppError::Io(_) | AppError::Internal(_) => {
                 StatusCode::INTERNAL_SERVER_ERROR
             }

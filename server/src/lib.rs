@@ -24,6 +24,7 @@ pub mod openapi;
 pub mod ops;
 pub mod preflight;
 pub mod routes;
+pub mod serve;
 pub mod shutdown;
 pub mod store;
 pub mod submissions;

@@ -35,13 +35,15 @@ pub fn document() -> Value {
                             "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
                             "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
                             "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
-                            "visibility": { "type": "string", "enum": ["public", "private"] },
+                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: public for a new submission. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's (re-sending a file is how to publish or withdraw it); without the field it keeps its own" },
                             "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset; each becomes a submission" }
                         } } } } },
                     "responses": {
                         "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
                         "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
-                        "200": { "description": "the same file was already submitted for this method: the existing submission" },
+                        "200": { "description": "every file was already submitted for this method (same dataset and protocols): the existing submissions, not evaluated again, with the visibility asked for if one was given" },
+                        "408": { "description": "the upload stalled: its body must keep delivering a minimum (by default 64 KiB every 20 s), however long the whole upload takes" },
+                        "429": { "description": "over the fair-use limit of submissions per dataset: {error, retry_at}, and a Retry-After header" },
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the file is larger than the limit" },
                         "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says; nothing is submitted: {error, problems: [{file, line, message}]}" }

@@ -4,11 +4,10 @@ pub mod account;
 pub mod admin;
 pub mod api;
 pub mod boards;
+pub mod deadlines;
 pub mod ops;
 pub mod pages;
 pub mod submissions;
-
-use std::time::Duration;
 
 use axum::Router;
 use axum::http::{HeaderValue, header};
@@ -16,10 +15,10 @@ use tower_http::compression::CompressionLayer;
 use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::services::ServeDir;
 use tower_http::set_header::SetResponseHeaderLayer;
-use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 
 use crate::app::AppState;
+use crate::routes::deadlines::Deadlines;
 
 /// Where the stylesheet and scripts are served from: the repository's `static/` folder.
 fn static_dir() -> std::path::PathBuf {
@@ -42,7 +41,7 @@ fn every_answer(
     SetResponseHeaderLayer::if_not_present(name, HeaderValue::from_static(value))
 }
 
-pub fn router(app: AppState) -> Router {
+pub fn router(app: AppState, deadlines: Deadlines) -> Router {
     let max_upload = app.config.max_upload_bytes();
     let static_files = Router::new()
         .nest_service("/static", ServeDir::new(static_dir()))
@@ -63,9 +62,9 @@ pub fn router(app: AppState) -> Router {
         .layer(CompressionLayer::new())
         // Uploads are bounded per route; this bounds every other body.
         .layer(RequestBodyLimitLayer::new(max_upload as usize + 64 * 1024))
-        .layer(TimeoutLayer::with_status_code(
-            axum::http::StatusCode::REQUEST_TIMEOUT,
-            Duration::from_secs(120),
+        .layer(axum::middleware::from_fn_with_state(
+            deadlines,
+            deadlines::plain_timeout,
         ))
         .layer(every_answer(header::CONTENT_SECURITY_POLICY, CSP))
         .layer(every_answer(header::X_FRAME_OPTIONS, "DENY"))

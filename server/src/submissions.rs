@@ -42,7 +42,9 @@ pub struct Upload {
     pub protocols: Vec<ProtocolName>,
     pub meta: MethodMeta,
     pub hardware: Hardware,
-    pub visibility: Visibility,
+    /// As asked; `None`: public for a new submission, and unchanged for a file already
+    /// submitted (so a retry that leaves the field out never publishes a private one).
+    pub visibility: Option<Visibility>,
     /// One result file per dataset.
     pub files: Vec<UploadedFile>,
 }
@@ -77,7 +79,8 @@ impl UploadedFile {
 
 pub struct Accepted {
     pub submission: SubmissionRow,
-    /// The same file had been submitted for the method: this is that submission.
+    /// The same file had been submitted for the method: this is that submission, with the
+    /// visibility the upload asked for.
     pub duplicate: bool,
     pub preflight: Preflight,
 }
@@ -263,7 +266,7 @@ struct Described<'a> {
     method: &'a MethodName,
     meta: &'a MethodMeta,
     protocols: &'a [ProtocolName],
-    visibility: Visibility,
+    visibility: Option<Visibility>,
     hardware: &'a Hardware,
 }
 
@@ -314,7 +317,7 @@ async fn store(
                 meta,
                 dataset_id,
                 protocols,
-                visibility,
+                visibility: visibility.unwrap_or(Visibility::Public),
                 file_name: &file.name,
                 file_sha256: &file.sha256,
                 file_size: file.size as i64,
@@ -340,13 +343,20 @@ async fn store(
             ));
         }
     };
-    let submission = app
+    let mut submission = app
         .store
         .submission(id)
         .await?
         .ok_or_else(|| AppError::Internal("the new submission vanished".into()))?;
     if duplicate {
         preflight = submission.preflight.clone();
+        // Re-sending a file with another visibility is how its owner publishes or withdraws
+        // it (the duplicate is of the uploader's own method, so theirs): nothing is lost and
+        // what they asked for holds.
+        if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
+            app.store.set_visibility(id, asked).await?;
+            submission.visibility = asked;
+        }
     }
     Ok(Accepted {
         submission,

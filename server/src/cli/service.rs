@@ -11,6 +11,7 @@ use crate::demo::{
     CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_results,
 };
 use crate::domain::{Password, TokenLabel, UserName};
+use crate::routes::deadlines::Deadlines;
 use crate::shutdown::Shutdown;
 
 #[derive(Args, Debug)]
@@ -86,13 +87,10 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
-        // Peer addresses feed the per-address sign-in limit.
-        let service = crate::routes::router(app)
-            .into_make_service_with_connect_info::<std::net::SocketAddr>();
+        let http = args.config.http;
+        let router = crate::routes::router(app, Deadlines::of(&http));
         let stop = shutdown.clone();
-        axum::serve(listener, service)
-            .with_graceful_shutdown(async move { stop.wait().await })
-            .await?;
+        crate::serve::serve(listener, router, &http, async move { stop.wait().await }).await;
         join_all(workers).await;
         Ok(())
     });
@@ -236,8 +234,9 @@ pub fn admin(args: AdminArgs) -> anyhow::Result<()> {
                 );
             }
             AdminCommand::CreateToken { name, label } => {
+                let name = UserName::parse(&name)?;
                 let user = store
-                    .user_by_name(&name)
+                    .user_by_name(name.as_str())
                     .await?
                     .ok_or_else(|| anyhow::anyhow!("no user `{name}`"))?;
                 let token =

@@ -5,8 +5,9 @@ use std::str::FromStr;
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::{HeaderMap, StatusCode};
+use axum::middleware::from_fn;
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Json, Router};
 use evaluator::protocol::ProtocolName;
 use serde_json::json;
@@ -16,6 +17,7 @@ use crate::auth::Viewer;
 use crate::board_cache::Format;
 use crate::error::{AppError, AppResult};
 use crate::routes::boards;
+use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
 use crate::submissions::{Accepted, submit};
 use crate::views;
@@ -27,9 +29,11 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/api/v1/methods/{id}", get(method))
         .route(
             "/api/v1/submissions",
-            get(recent_submissions)
-                .post(create_submission)
-                .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024)),
+            get(recent_submissions).merge(
+                post(create_submission)
+                    .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024))
+                    .layer(from_fn(deadlines::by_progress)),
+            ),
         )
         .route("/api/v1/submissions/{id}", get(submission))
         .route("/api/v1/leaderboards/{protocol}", get(leaderboard))

@@ -9,8 +9,9 @@ use axum::Router;
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
 use axum::http::{HeaderMap, StatusCode};
+use axum::middleware::from_fn;
 use axum::response::{IntoResponse, Redirect, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use evaluator::Report;
 use evaluator::protocol::ProtocolName;
 
@@ -19,6 +20,7 @@ use crate::auth::Viewer;
 use crate::board_cache::Format;
 use crate::error::{AppError, AppResult, ErrorBody};
 use crate::routes::boards;
+use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
@@ -35,9 +37,11 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/submissions/{id}", get(submission))
         .route(
             "/submit",
-            get(submit_form)
-                .post(submit)
-                .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024)),
+            get(submit_form).merge(
+                post(submit)
+                    .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024))
+                    .layer(from_fn(deadlines::by_progress)),
+            ),
         )
 }
 

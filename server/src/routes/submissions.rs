@@ -49,8 +49,8 @@ impl Fields {
             p => vec![ProtocolName::from_str(p).map_err(AppError::BadRequest)?],
         };
         let visibility = match self.visibility.trim() {
-            "" => Visibility::Public,
-            v => v.parse()?,
+            "" => None,
+            v => Some(v.parse::<Visibility>()?),
         };
         let meta = MethodMeta {
             description: Description::parse(&self.description)?,

@@ -434,6 +434,31 @@ impl Store {
             .await
     }
 
+    /// Makes a submission public or private; false when there is no such submission.
+    pub async fn set_visibility(&self, id: i64, visibility: Visibility) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let public = i64::from(visibility == Visibility::Public);
+        let exists = sqlx::query("SELECT public FROM submissions WHERE id = $1")
+            .bind(id)
+            .fetch_optional(&mut *tx)
+            .await?;
+        let Some(row) = exists else {
+            tx.rollback().await?;
+            return Ok(false);
+        };
+        let changed = row.try_get::<i64, _>("public")? != public;
+        if changed {
+            sqlx::query("UPDATE submissions SET public = $1 WHERE id = $2")
+                .bind(public)
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+        }
+        // A published or withdrawn submission enters or leaves the boards.
+        self.commit_board_change(tx, changed).await?;
+        Ok(true)
+    }
+
     /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
     /// until the new ones replace them. False when it is missing or not finished.
     pub async fn rerun(&self, id: i64) -> StoreResult<bool> {

@@ -194,8 +194,21 @@ pub fn account(data_dir: &Path, db: &TestDb, name: &str) -> String {
 
 /// Starts `poseboard serve` on port 0 and waits for the line that tells its address.
 pub fn start(data_dir: &Path, datasets: &Path, db: &TestDb, extra: &[&str]) -> Server {
+    start_with_env(data_dir, datasets, db, extra, &[])
+}
+
+/// [`start`] with environment variables set for the server (settings read from the
+/// environment, which a server without them ignores).
+pub fn start_with_env(
+    data_dir: &Path,
+    datasets: &Path,
+    db: &TestDb,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> Server {
     let token = account(data_dir, db, "tester");
     let mut cmd = Command::new(BIN);
+    cmd.envs(env.iter().copied());
     cmd.args(["serve", "--bind", "127.0.0.1:0", "--lease-secs", "2"])
         .arg("--data-dir")
         .arg(data_dir)
