@@ -359,3 +359,42 @@ fn serves_the_core_datasets(kind: Db) {
     }
 }
 both_databases!(serves_the_core_datasets);
+
+/// A fair-use limit met part-way through an upload of several files stores none of them:
+/// limit 3 per dataset, three submissions on IC-BIN already, then five files of which the
+/// fourth is for IC-BIN.
+fn a_limit_part_way_stores_nothing(kind: Db) {
+    let m = miniatures();
+    let dir = tempfile::tempdir().expect("tmp");
+    let db = TestDb::new(kind, "partway");
+    let data = dir.path().join("data");
+    let server = start(
+        &data,
+        &m.core,
+        &db,
+        &["--no-demo", "--submissions-per-window", "3"],
+    );
+    let icbin = m.result_for("icbin");
+    for method in ["first", "second", "third"] {
+        let r = upload_files(&server, &[("method", method)], std::slice::from_ref(&icbin));
+        assert_eq!(r.status(), 202, "{kind:?}");
+    }
+    let files: Vec<PathBuf> = ["lmo", "tless", "tudl", "icbin", "itodd"]
+        .iter()
+        .map(|n| m.result_for(n))
+        .collect();
+    let r = upload_files(&server, &[("method", "five")], &files);
+    assert_eq!(r.status(), 429, "{kind:?}");
+    let body: Value = r.json().expect("json");
+    let error = body["error"].as_str().expect("error");
+    assert!(
+        error.contains("at most 3 submissions per dataset")
+            && error.contains("noisy_icbin-test.csv")
+            && error.contains("none of the 5 files was submitted"),
+        "{error}"
+    );
+    assert_eq!(submissions_count(&server), 3, "{kind:?}");
+    let methods = common::column(&db, &data, "SELECT name FROM methods ORDER BY name");
+    assert_eq!(methods, ["first", "second", "third"], "{kind:?}");
+}
+both_databases!(a_limit_part_way_stores_nothing);
