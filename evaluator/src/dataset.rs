@@ -5,13 +5,13 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Display;
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
+pub use crate::depth_files::{DepthFormat, DepthImage};
+use crate::depth_files::{depth_size, read_depth};
 use crate::error::{Error, Result};
 use crate::math::{Intrinsics, Pose};
 use crate::mesh::Mesh;
@@ -149,15 +149,8 @@ pub struct Dataset {
     pub targets: Vec<Target>,
     /// (width, height) in pixels.
     pub image_size: (u32, u32),
-}
-
-/// A depth image in millimetres; 0 means no measurement.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DepthImage {
-    pub width: u32,
-    pub height: u32,
-    /// Row-major: `data[y * width + x]`.
-    pub data: Vec<f32>,
+    /// PNG, or TIFF as ITODD publishes its depth (found from the first target's image).
+    pub depth_format: DepthFormat,
 }
 
 impl Dataset {
@@ -237,7 +230,13 @@ impl Dataset {
             })
             .unwrap_or_default();
 
+        let first = targets[0];
+        let depth_format = DepthFormat::find(
+            &scene_dir(&split_dir, first.scene_id).join("depth"),
+            &format!("{:06}", first.im_id),
+        );
         let mut dataset = Dataset {
+            depth_format,
             name,
             root: root.to_path_buf(),
             split_dir,
@@ -254,10 +253,10 @@ impl Dataset {
     pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
         scene_dir(&self.split_dir, scene_id)
             .join("depth")
-            .join(format!("{im_id:06}.png"))
+            .join(format!("{im_id:06}.{}", self.depth_format.extension()))
     }
 
-    /// Depth in mm: the PNG value (as f32) times `depth_scale` (as f32), the float32
+    /// Depth in mm: the PNG or TIFF value (as f32) times `depth_scale` (as f32), the float32
     /// arithmetic of bop_toolkit, so that VSD sees the very same depths. 0 = no measurement.
     pub fn load_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthImage> {
         let path = self.depth_path(scene_id, im_id);
@@ -271,7 +270,7 @@ impl Dataset {
                     format!("scene {scene_id}, image {im_id} is not among the target images"),
                 )
             })?;
-        read_depth_png(&path, image.depth_scale as f32)
+        read_depth(&path, self.depth_format, image.depth_scale as f32)
     }
 
     /// The camera files state the sensor size: the split type's (`camera_primesense.json`)
@@ -309,7 +308,10 @@ impl Dataset {
             }
         }
         let first = self.targets[0];
-        png_size(&self.depth_path(first.scene_id, first.im_id))
+        depth_size(
+            &self.depth_path(first.scene_id, first.im_id),
+            self.depth_format,
+        )
     }
 }
 
@@ -608,88 +610,10 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
     })
 }
 
-fn png_error(path: &Path, e: png::DecodingError) -> Error {
-    match e {
-        png::DecodingError::IoError(e) => Error::io(path, e),
-        other => Error::format(path, format!("invalid PNG: {other}")),
-    }
-}
-
-fn png_decoder(path: &Path) -> Result<png::Decoder<BufReader<File>>> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut decoder = png::Decoder::new(BufReader::new(file));
-    // Raw samples: no expansion or 16-to-8 stripping may alter the depth values.
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    Ok(decoder)
-}
-
-fn png_size(path: &Path) -> Result<(u32, u32)> {
-    let mut decoder = png_decoder(path)?;
-    let info = decoder.read_header_info().map_err(|e| png_error(path, e))?;
-    Ok((info.width, info.height))
-}
-
-/// Deflate expands data at most about 1032-fold; a header promising more pixels than that
-/// is corrupt, and is rejected before its buffer is allocated.
-const MAX_DEFLATE_RATIO: u64 = 1032;
-
-fn read_depth_png(path: &Path, depth_scale: f32) -> Result<DepthImage> {
-    let file_len = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
-    let mut reader = png_decoder(path)?
-        .read_info()
-        .map_err(|e| png_error(path, e))?;
-    let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
-    let sixteen = match (color, bits) {
-        (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
-        (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
-        _ => {
-            return Err(Error::format(
-                path,
-                format!(
-                    "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
-                     {color:?} with bit depth {}",
-                    bits as u8
-                ),
-            ));
-        }
-    };
-    let (width, height) = (reader.info().width, reader.info().height);
-    let size = reader
-        .output_buffer_size()
-        .filter(|&n| n as u64 <= file_len.saturating_mul(MAX_DEFLATE_RATIO))
-        .ok_or_else(|| {
-            Error::format(
-                path,
-                format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
-            )
-        })?;
-    let mut buf = vec![0u8; size];
-    reader
-        .next_frame(&mut buf)
-        .map_err(|e| png_error(path, e))?;
-    // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
-    // straight into the new buffer vectorise (an indexed loop or `chunks_exact` did not).
-    let data: Vec<f32> = if sixteen {
-        let (samples, _) = buf.as_chunks::<2>();
-        samples
-            .iter()
-            .map(|&b| f32::from(u16::from_be_bytes(b)) * depth_scale)
-            .collect()
-    } else {
-        buf.iter().map(|&v| f32::from(v) * depth_scale).collect()
-    };
-    Ok(DepthImage {
-        width,
-        height,
-        data,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fs::File;
 
     const REFERENCE: &str = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -858,6 +782,80 @@ mod tests {
 
         std::fs::write(&path, b"not a png").unwrap();
         assert!(matches!(d.load_depth(1, 0), Err(Error::Format { .. })));
+    }
+
+    /// Rewrites every depth image of `root`'s test split as a 16-bit TIFF (ITODD's format).
+    fn depth_to_tiff(d: &Dataset, compression: tiff::encoder::Compression) {
+        for t in &d.targets {
+            let png = d.depth_path(t.scene_id, t.im_id);
+            if !png.exists() {
+                continue;
+            }
+            let depth = d.load_depth(t.scene_id, t.im_id).unwrap();
+            let values: Vec<u16> = depth.data.iter().map(|&v| v as u16).collect();
+            let file = std::io::BufWriter::new(File::create(png.with_extension("tif")).unwrap());
+            tiff::encoder::TiffEncoder::new(file)
+                .unwrap()
+                .with_compression(compression)
+                .write_image::<tiff::encoder::colortype::Gray16>(depth.width, depth.height, &values)
+                .unwrap();
+            std::fs::remove_file(png).unwrap();
+        }
+    }
+
+    #[test]
+    fn depth_tiff_as_itodd_publishes_it() {
+        use tiff::encoder::{Compression, DeflateLevel};
+        let expected = reference().load_depth(1, 0).unwrap();
+        for compression in [
+            Compression::Uncompressed,
+            Compression::Lzw,
+            Compression::Deflate(DeflateLevel::Fast),
+            Compression::Packbits,
+        ] {
+            let dir = copy();
+            let root = dir.path().join("synthA");
+            depth_to_tiff(&Dataset::load(&root).unwrap(), compression);
+            let d = Dataset::load(&root).unwrap();
+            assert_eq!(d.depth_format, DepthFormat::Tiff);
+            assert_eq!(
+                d.depth_path(1, 0),
+                root.join("test/000001/depth/000000.tif")
+            );
+            assert_eq!(d.load_depth(1, 0).unwrap(), expected);
+            // Without camera files the size comes from the first TIFF's header.
+            std::fs::remove_file(root.join("camera.json")).unwrap();
+            assert_eq!(Dataset::load(&root).unwrap().image_size, (640, 480));
+        }
+
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        let d = Dataset::load(&root).unwrap();
+        depth_to_tiff(&d, Compression::Uncompressed);
+        let d = Dataset::load(&root).unwrap();
+        let path = d.depth_path(1, 0);
+        let write = |w: &mut dyn FnMut(&mut tiff::encoder::TiffEncoder<File>)| {
+            let mut encoder =
+                tiff::encoder::TiffEncoder::new(File::create(&path).unwrap()).unwrap();
+            w(&mut encoder);
+        };
+        write(&mut |e| {
+            e.write_image::<tiff::encoder::colortype::Gray8>(2, 2, &[0, 1, 200, 255])
+                .unwrap()
+        });
+        assert_eq!(d.load_depth(1, 0).unwrap().data, [0.0, 1.0, 200.0, 255.0]);
+        write(&mut |e| {
+            e.write_image::<tiff::encoder::colortype::RGB8>(1, 1, &[1, 2, 3])
+                .unwrap()
+        });
+        let msg = d.load_depth(1, 0).unwrap_err().to_string();
+        assert!(
+            msg.contains("000000.tif") && msg.contains("16-bit (or 8-bit) grayscale"),
+            "{msg}"
+        );
+        std::fs::write(&path, b"II*\0 not a tiff").unwrap();
+        let msg = d.load_depth(1, 0).unwrap_err().to_string();
+        assert!(msg.contains("invalid TIFF"), "{msg}");
     }
 
     #[test]
