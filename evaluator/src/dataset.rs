@@ -5,13 +5,13 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Display;
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
+use crate::depth_files::depth_size;
+pub use crate::depth_files::{DepthFile, DepthFormat, DepthImage, DepthRows};
 use crate::error::{Error, Result};
 use crate::math::{Intrinsics, Pose};
 use crate::mesh::Mesh;
@@ -154,15 +154,8 @@ pub struct Dataset {
     pub models_info_path: PathBuf,
     /// `models_eval` when present, else `models`: where the meshes are read from.
     pub models_dir: PathBuf,
-}
-
-/// A depth image in millimetres; 0 means no measurement.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DepthImage {
-    pub width: u32,
-    pub height: u32,
-    /// Row-major: `data[y * width + x]`.
-    pub data: Vec<f32>,
+    /// PNG, or TIFF as ITODD publishes its depth (found from the first target's image).
+    pub depth_format: DepthFormat,
 }
 
 impl Dataset {
@@ -243,7 +236,13 @@ impl Dataset {
             })
             .unwrap_or_default();
 
+        let first = targets[0];
+        let depth_format = DepthFormat::find(
+            &scene_dir(&split_dir, first.scene_id).join("depth"),
+            &format!("{:06}", first.im_id),
+        );
         let mut dataset = Dataset {
+            depth_format,
             name,
             root: root.to_path_buf(),
             split_dir,
@@ -298,15 +297,15 @@ impl Dataset {
     pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
         scene_dir(&self.split_dir, scene_id)
             .join("depth")
-            .join(format!("{im_id:06}.png"))
+            .join(format!("{im_id:06}.{}", self.depth_format.extension()))
     }
 
-    /// Depth in mm: the PNG value (as f32) times `depth_scale` (as f32), the float32
+    /// Depth in mm: the PNG or TIFF value (as f32) times `depth_scale` (as f32), the float32
     /// arithmetic of bop_toolkit, so that VSD sees the very same depths. 0 = no measurement.
     pub fn load_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthImage> {
-        let png = self.open_depth(scene_id, im_id)?;
-        let (width, height) = png.size();
-        let band = png.read_rows(0..height)?;
+        let file = self.open_depth(scene_id, im_id)?;
+        let (width, height) = file.size();
+        let band = file.read_rows(0..height)?;
         Ok(DepthImage {
             width,
             height,
@@ -315,8 +314,8 @@ impl Dataset {
     }
 
     /// The depth image of a target with only its header read, so that a caller can inflate
-    /// just the rows it needs ([`DepthPng::read_rows`]).
-    pub fn open_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthPng> {
+    /// just the rows it needs ([`DepthFile::read_rows`]).
+    pub fn open_depth(&self, scene_id: u32, im_id: u32) -> Result<DepthFile> {
         let path = self.depth_path(scene_id, im_id);
         let image = self
             .scenes
@@ -328,7 +327,7 @@ impl Dataset {
                     format!("scene {scene_id}, image {im_id} is not among the target images"),
                 )
             })?;
-        DepthPng::open(path, image.depth_scale as f32)
+        DepthFile::open(path, self.depth_format, image.depth_scale as f32)
     }
 
     /// The camera files state the sensor size: the split type's (`camera_primesense.json`)
@@ -366,7 +365,10 @@ impl Dataset {
             }
         }
         let first = self.targets[0];
-        png_size(&self.depth_path(first.scene_id, first.im_id))
+        depth_size(
+            &self.depth_path(first.scene_id, first.im_id),
+            self.depth_format,
+        )
     }
 }
 
@@ -671,160 +673,10 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
     })
 }
 
-fn png_error(path: &Path, e: png::DecodingError) -> Error {
-    match e {
-        png::DecodingError::IoError(e) => Error::io(path, e),
-        other => Error::format(path, format!("invalid PNG: {other}")),
-    }
-}
-
-fn png_decoder(path: &Path) -> Result<png::Decoder<BufReader<File>>> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut decoder = png::Decoder::new(BufReader::new(file));
-    // Raw samples: no expansion or 16-to-8 stripping may alter the depth values.
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    Ok(decoder)
-}
-
-fn png_size(path: &Path) -> Result<(u32, u32)> {
-    let mut decoder = png_decoder(path)?;
-    let info = decoder.read_header_info().map_err(|e| png_error(path, e))?;
-    Ok((info.width, info.height))
-}
-
-/// Deflate expands data at most about 1032-fold; a header promising more pixels than that
-/// is corrupt, and is rejected before its buffer is allocated.
-const MAX_DEFLATE_RATIO: u64 = 1032;
-
-/// A depth PNG whose header has been read and checked.
-///
-/// Inflating a whole 640x480 16-bit image costs about as much as rendering and scoring all the
-/// estimates of its target, while the objects of an image lie in a band of its rows: a deflate
-/// stream cannot be entered in the middle, but it can be left as soon as the last row a render
-/// covers is out, and rows above the band need not be converted. A file damaged below the
-/// rows read is therefore not noticed, as it cannot change a score.
-pub struct DepthPng {
-    path: PathBuf,
-    reader: png::Reader<BufReader<File>>,
-    depth_scale: f32,
-    sixteen: bool,
-}
-
-/// Rows `y0..y0 + rows` of a depth image in mm (0 = no measurement).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct DepthRows {
-    pub width: u32,
-    /// Height of the whole image.
-    pub height: u32,
-    pub y0: u32,
-    /// Row-major: `data[(y - y0) * width + x]`.
-    pub data: Vec<f32>,
-}
-
-impl DepthPng {
-    fn open(path: PathBuf, depth_scale: f32) -> Result<DepthPng> {
-        let file_len = std::fs::metadata(&path)
-            .map_err(|e| Error::io(&path, e))?
-            .len();
-        let reader = png_decoder(&path)?
-            .read_info()
-            .map_err(|e| png_error(&path, e))?;
-        let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
-        let sixteen = match (color, bits) {
-            (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
-            (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
-            _ => {
-                return Err(Error::format(
-                    &path,
-                    format!(
-                        "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
-                         {color:?} with bit depth {}",
-                        bits as u8
-                    ),
-                ));
-            }
-        };
-        let (width, height) = (reader.info().width, reader.info().height);
-        if reader
-            .output_buffer_size()
-            .is_none_or(|n| n as u64 > file_len.saturating_mul(MAX_DEFLATE_RATIO))
-        {
-            return Err(Error::format(
-                &path,
-                format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
-            ));
-        }
-        Ok(DepthPng {
-            path,
-            reader,
-            depth_scale,
-            sixteen,
-        })
-    }
-
-    /// (width, height) in pixels, as the header states.
-    pub fn size(&self) -> (u32, u32) {
-        let info = self.reader.info();
-        (info.width, info.height)
-    }
-
-    /// Inflates the image up to the end of `rows` (clamped to the image) and returns those
-    /// rows; nothing after them is read (except in interlaced files, where every pass covers
-    /// the whole image).
-    pub fn read_rows(mut self, rows: std::ops::Range<u32>) -> Result<DepthRows> {
-        let (width, height) = self.size();
-        let (y1, y0) = (rows.end.min(height), rows.start.min(rows.end).min(height));
-        let mut data = Vec::with_capacity(width as usize * (y1 - y0) as usize);
-        let (scale, sixteen) = (self.depth_scale, self.sixteen);
-        // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
-        // straight into the buffer vectorise (an indexed loop did not).
-        let mut push = |row: &[u8]| {
-            if sixteen {
-                let (samples, _) = row.as_chunks::<2>();
-                data.extend(
-                    samples
-                        .iter()
-                        .map(|&b| f32::from(u16::from_be_bytes(b)) * scale),
-                );
-            } else {
-                data.extend(row.iter().map(|&v| f32::from(v) * scale));
-            }
-        };
-        let path = &self.path;
-        if self.reader.info().interlaced {
-            let size = self.reader.output_buffer_size().unwrap_or(0);
-            let mut buf = vec![0u8; size];
-            self.reader
-                .next_frame(&mut buf)
-                .map_err(|e| png_error(path, e))?;
-            let line = size / height.max(1) as usize;
-            for y in y0..y1 {
-                push(&buf[y as usize * line..(y as usize + 1) * line]);
-            }
-        } else {
-            for y in 0..y1 {
-                let row = self
-                    .reader
-                    .next_row()
-                    .map_err(|e| png_error(path, e))?
-                    .ok_or_else(|| Error::format(path, format!("image data ends at row {y}")))?;
-                if y >= y0 {
-                    push(row.data());
-                }
-            }
-        }
-        Ok(DepthRows {
-            width,
-            height,
-            y0,
-            data,
-        })
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fs::File;
 
     const REFERENCE: &str = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -1006,6 +858,80 @@ mod tests {
 
         std::fs::write(&path, b"not a png").unwrap();
         assert!(matches!(d.load_depth(1, 0), Err(Error::Format { .. })));
+    }
+
+    /// Rewrites every depth image of `root`'s test split as a 16-bit TIFF (ITODD's format).
+    fn depth_to_tiff(d: &Dataset, compression: tiff::encoder::Compression) {
+        for t in &d.targets {
+            let png = d.depth_path(t.scene_id, t.im_id);
+            if !png.exists() {
+                continue;
+            }
+            let depth = d.load_depth(t.scene_id, t.im_id).unwrap();
+            let values: Vec<u16> = depth.data.iter().map(|&v| v as u16).collect();
+            let file = std::io::BufWriter::new(File::create(png.with_extension("tif")).unwrap());
+            tiff::encoder::TiffEncoder::new(file)
+                .unwrap()
+                .with_compression(compression)
+                .write_image::<tiff::encoder::colortype::Gray16>(depth.width, depth.height, &values)
+                .unwrap();
+            std::fs::remove_file(png).unwrap();
+        }
+    }
+
+    #[test]
+    fn depth_tiff_as_itodd_publishes_it() {
+        use tiff::encoder::{Compression, DeflateLevel};
+        let expected = reference().load_depth(1, 0).unwrap();
+        for compression in [
+            Compression::Uncompressed,
+            Compression::Lzw,
+            Compression::Deflate(DeflateLevel::Fast),
+            Compression::Packbits,
+        ] {
+            let dir = copy();
+            let root = dir.path().join("synthA");
+            depth_to_tiff(&Dataset::load(&root).unwrap(), compression);
+            let d = Dataset::load(&root).unwrap();
+            assert_eq!(d.depth_format, DepthFormat::Tiff);
+            assert_eq!(
+                d.depth_path(1, 0),
+                root.join("test/000001/depth/000000.tif")
+            );
+            assert_eq!(d.load_depth(1, 0).unwrap(), expected);
+            // Without camera files the size comes from the first TIFF's header.
+            std::fs::remove_file(root.join("camera.json")).unwrap();
+            assert_eq!(Dataset::load(&root).unwrap().image_size, (640, 480));
+        }
+
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        let d = Dataset::load(&root).unwrap();
+        depth_to_tiff(&d, Compression::Uncompressed);
+        let d = Dataset::load(&root).unwrap();
+        let path = d.depth_path(1, 0);
+        let write = |w: &mut dyn FnMut(&mut tiff::encoder::TiffEncoder<File>)| {
+            let mut encoder =
+                tiff::encoder::TiffEncoder::new(File::create(&path).unwrap()).unwrap();
+            w(&mut encoder);
+        };
+        write(&mut |e| {
+            e.write_image::<tiff::encoder::colortype::Gray8>(2, 2, &[0, 1, 200, 255])
+                .unwrap()
+        });
+        assert_eq!(d.load_depth(1, 0).unwrap().data, [0.0, 1.0, 200.0, 255.0]);
+        write(&mut |e| {
+            e.write_image::<tiff::encoder::colortype::RGB8>(1, 1, &[1, 2, 3])
+                .unwrap()
+        });
+        let msg = d.load_depth(1, 0).unwrap_err().to_string();
+        assert!(
+            msg.contains("000000.tif") && msg.contains("16-bit (or 8-bit) grayscale"),
+            "{msg}"
+        );
+        std::fs::write(&path, b"II*\0 not a tiff").unwrap();
+        let msg = d.load_depth(1, 0).unwrap_err().to_string();
+        assert!(msg.contains("invalid TIFF"), "{msg}");
     }
 
     #[test]

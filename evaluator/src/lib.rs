@@ -7,6 +7,7 @@
 //! rayon pool, so a service can bound it.
 
 pub mod dataset;
+pub mod depth_files;
 pub mod error;
 pub mod matching;
 pub mod math;

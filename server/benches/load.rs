@@ -70,6 +70,7 @@ fn main() -> Res<()> {
             seed: 5,
             scenes,
             images_per_scene: 8,
+            ..SynthOptions::default()
         },
     )?;
     let large_results = write_demo_results(&large, &work.path().join("large-results"), 3)?;

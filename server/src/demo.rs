@@ -34,6 +34,9 @@ pub struct SynthOptions {
     pub scenes: u32,
     /// Images 0 to `images_per_scene - 1` in each scene.
     pub images_per_scene: u32,
+    /// (width, height) of the images; the intrinsics scale with it, so every size shows the
+    /// same scenes with the same ground truth.
+    pub image_size: (u32, u32),
 }
 
 impl Default for SynthOptions {
@@ -42,6 +45,7 @@ impl Default for SynthOptions {
             seed: 7,
             scenes: 3,
             images_per_scene: 4,
+            image_size: (scenes::WIDTH, scenes::HEIGHT),
         }
     }
 }
@@ -59,11 +63,16 @@ struct CameraInfo {
 
 /// Writes the dataset into `dir` (created; must be empty or absent): `camera.json`,
 /// `models/`, `models_eval/` (the same files), `test/` and `test_targets_bop19.json`. Images
-/// are 640 x 480 with LINEMOD's intrinsics; depth PNGs are in tenths of a millimetre
+/// are 640 x 480 with LINEMOD's intrinsics unless `opts.image_size` asks for another size
+/// (the intrinsics then scale with it); depth PNGs are in tenths of a millimetre
 /// (`depth_scale` 0.1). Same options -> byte-identical files.
 pub fn write_dataset(dir: &Path, opts: &SynthOptions) -> Result<()> {
     if opts.scenes == 0 || opts.images_per_scene == 0 {
         bail!("the synthetic dataset needs at least one scene and one image per scene");
+    }
+    let (width, height) = opts.image_size;
+    if width < 64 || height < 48 {
+        bail!("images of {width} x {height} are too small: at least 64 x 48");
     }
     if dir.exists() {
         let mut entries =
@@ -76,15 +85,15 @@ pub fn write_dataset(dir: &Path, opts: &SynthOptions) -> Result<()> {
 
     let shapes = shapes::shapes();
     shapes::write_models(dir, &shapes)?;
-    let k = scenes::CAM_K;
+    let k = scenes::cam_k(opts.image_size);
     let camera = serde_json::to_value(CameraInfo {
         cx: k[2],
         cy: k[5],
         depth_scale: scenes::DEPTH_SCALE,
         fx: k[0],
         fy: k[4],
-        height: scenes::HEIGHT,
-        width: scenes::WIDTH,
+        height,
+        width,
     })?;
     if let serde_json::Value::Object(fields) = camera {
         files::write_json_object(&dir.join("camera.json"), fields)?;
@@ -182,6 +191,7 @@ mod tests {
             seed: 3,
             scenes: 2,
             images_per_scene: 3,
+            ..SynthOptions::default()
         };
         write_dataset(&tmp.path().join("a"), &opts).unwrap();
         write_dataset(&tmp.path().join("b"), &opts).unwrap();

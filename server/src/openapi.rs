@@ -36,7 +36,7 @@ pub fn document() -> Value {
                             "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
                             "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
                             "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: public for a new submission. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's (re-sending a file is how to publish or withdraw it); without the field it keeps its own" },
-                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset; each becomes a submission" }
+                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset, or a .zip of them (unpacked, within the upload limit); each result file becomes a submission" }
                         } } } } },
                     "responses": {
                         "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
@@ -46,7 +46,8 @@ pub fn document() -> Value {
                         "429": { "description": "over the fair-use limit of submissions per dataset: {error, retry_at}, and a Retry-After header" },
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the file is larger than the limit" },
-                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says; nothing is submitted: {error, problems: [{file, line, message}]}" }
+                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
+                        "429": { "description": "over the fair-use limit for a dataset: nothing of the upload is submitted; {error, retry_at}" }
                     }
                 }
             },

@@ -3,11 +3,15 @@
 //! (`METHOD_DATASET-SPLIT.csv`) says, and the two must agree, since a file for the wrong
 //! dataset is the commonest mistake; the file is validated with the evaluator's parser (every
 //! problem with its line), checked for coverage against the dataset, and stored compressed in
-//! the database under its content hash in the transaction that queues its job, together with
-//! the method (get or create), the duplicate check and the fair-use limit. An upload of several files (one per dataset)
-//! becomes one submission per file, and every file is checked before any is stored, so one bad
-//! file refuses them all. Callers hand over values already parsed at their edge (`MethodName`,
+//! the database under its content hash with its job; the method (get or create), the duplicate
+//! checks and the fair-use limit are decided with the inserts in one transaction. An upload of
+//! several files (one per dataset, or a zip of them) becomes one submission per file, every
+//! file is checked before any is stored, so one bad file refuses them all, and all are created
+//! in one transaction, so a limit met at the fourth file leaves none of the first three behind.
+//! Callers hand over values already parsed at their edge (`MethodName`,
 //! `Visibility`, ...). A refused upload leaves no row behind.
+
+mod archive;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -25,7 +29,7 @@ use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
-use crate::store::submissions::{Created, FairUse, NewSubmission, SubmissionRow};
+use crate::store::submissions::{Created, CreatedAll, FairUse, NewSubmission, SubmissionRow};
 use crate::uploaded_file;
 
 /// Evaluation cost assumed per evaluated estimate and protocol, in seconds, for the estimate
@@ -111,6 +115,7 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Ac
             "field `file` (the result file) is required".into(),
         ));
     }
+    let files = unpack_archives(app, files).await?;
     let several = files.len() > 1;
     let total = files.len();
     let mut checked = Vec::new();
@@ -146,18 +151,37 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Ac
         });
     }
 
-    let what = Described {
-        method: &method,
-        meta: &meta,
-        protocols: &protocols,
-        visibility,
-        hardware: &hardware,
-    };
-    let mut accepted = Vec::with_capacity(checked.len());
-    for c in checked {
-        accepted.push(store(app, owner, &what, c).await?);
+    store_all(
+        app,
+        owner,
+        &Described {
+            method: &method,
+            meta: &meta,
+            protocols: &protocols,
+            visibility,
+            hardware: &hardware,
+        },
+        checked,
+    )
+    .await
+}
+
+/// The upload's files with every zip archive replaced by the result files it holds.
+async fn unpack_archives(app: &App, files: Vec<UploadedFile>) -> AppResult<Vec<UploadedFile>> {
+    let mut out = Vec::with_capacity(files.len());
+    for file in files {
+        if !archive::is_zip(&file) {
+            out.push(file);
+            continue;
+        }
+        let (dir, limit) = (app.config.submissions_dir(), app.config.max_upload_bytes());
+        // Inflating is CPU work and blocking reads: off the async threads.
+        let unpacked = tokio::task::spawn_blocking(move || archive::unpack(&dir, &file, limit))
+            .await
+            .map_err(|e| AppError::Internal(e.to_string()))??;
+        out.extend(unpacked);
     }
-    Ok(accepted)
+    Ok(out)
 }
 
 /// The dataset a file is for: the field when given, else the one its name
@@ -270,13 +294,16 @@ struct Described<'a> {
     hardware: &'a Hardware,
 }
 
-/// Stores and queues one checked file.
-async fn store(
+/// Stores and queues the checked files of one upload, all or none: the files are put in place
+/// first (so no worker can find a job without its file), then every submission is created in
+/// one store transaction; when that refuses (the fair-use limit) or fails, the files no
+/// submission uses are removed again.
+async fn store_all(
     app: &App,
     owner: &User,
     what: &Described<'_>,
-    checked: Checked,
-) -> AppResult<Accepted> {
+    checked: Vec<Checked>,
+) -> AppResult<Vec<Accepted>> {
     let Described {
         method,
         meta,
@@ -284,94 +311,144 @@ async fn store(
         visibility,
         hardware,
     } = *what;
-    let Checked {
+    // The waiting time of each file counts the files of the upload before it.
+    let mut ahead = app.store.estimates_ahead(i64::MAX).await?;
+    let queue_position = app.store.queue_position(i64::MAX).await?;
+    let mut kept = Vec::with_capacity(checked.len());
+    for Checked {
         file,
         dataset_id,
         estimates_count,
         mut preflight,
-    } = checked;
-    let ahead = app.store.estimates_ahead(i64::MAX).await?;
-    preflight.estimated_seconds =
-        (ahead as f64 + preflight.estimates as f64 * protocols.len() as f64) * SECONDS_PER_ESTIMATE;
-    preflight.queue_position = app.store.queue_position(i64::MAX).await?;
-
-    // The file goes into the database with its job (compressed off the async threads), so
-    // any worker, on any machine, finds the two together.
-    let path = file.tmp.to_path_buf();
-    let gzip = tokio::task::spawn_blocking(move || uploaded_file::compress(&std::fs::read(path)?))
-        .await
-        .map_err(|e| AppError::Internal(e.to_string()))?
-        .map_err(|e| AppError::Internal(format!("cannot store the upload: {e}")))?;
+    } in checked
+    {
+        let cost = preflight.estimates as f64 * protocols.len() as f64;
+        preflight.estimated_seconds = (ahead as f64 + cost) * SECONDS_PER_ESTIMATE;
+        preflight.queue_position = queue_position;
+        ahead += estimates_count as i64;
+        // The file goes into the database with its job (compressed off the async threads), so
+        // any worker, on any machine, finds the two together.
+        let path = file.tmp.to_path_buf();
+        let gzip =
+            tokio::task::spawn_blocking(move || uploaded_file::compress(&std::fs::read(path)?))
+                .await
+                .map_err(|e| AppError::Internal(e.to_string()))?
+                .map_err(|e| AppError::Internal(format!("cannot store the upload: {e}")))?;
+        kept.push(Kept {
+            name: file.name,
+            sha256: file.sha256,
+            size: file.size,
+            gzip,
+            dataset_id,
+            estimates_count,
+            preflight,
+        });
+    }
 
     let config = &app.config;
     let fair_use = (config.submissions_per_window > 0).then(|| FairUse {
         limit: config.submissions_per_window as usize,
         since: now_ms() - config.limit_window_ms(),
     });
-    let created = app
-        .store
-        .create_submission(
-            &NewSubmission {
-                owner_id: owner.id,
-                method,
-                meta,
-                dataset_id,
-                protocols,
-                visibility: visibility.unwrap_or(Visibility::Public),
-                file_name: &file.name,
-                file_sha256: &file.sha256,
-                file_size: file.size as i64,
-                file_gzip: &gzip,
-                estimates_count: estimates_count as i64,
-                hardware,
-                preflight: &preflight,
-            },
-            fair_use,
-        )
-        .await?;
-    let (id, duplicate) = match created {
-        Created::New(id) => {
-            app.wake.notify_waiters();
-            (id, false)
-        }
-        Created::Duplicate(id) => (id, true),
-        Created::Limited { times } => {
+    let news: Vec<NewSubmission> = kept
+        .iter()
+        .map(|k| NewSubmission {
+            owner_id: owner.id,
+            method,
+            meta,
+            dataset_id: k.dataset_id,
+            protocols,
+            visibility: visibility.unwrap_or(Visibility::Public),
+            file_name: &k.name,
+            file_sha256: &k.sha256,
+            file_size: k.size as i64,
+            file_gzip: &k.gzip,
+            estimates_count: k.estimates_count as i64,
+            hardware,
+            preflight: &k.preflight,
+        })
+        .collect();
+    // Files and submissions go in together or not at all: a refusal leaves nothing behind.
+    let created = match app.store.create_submissions(&news, fair_use).await? {
+        CreatedAll::All(created) => created,
+        CreatedAll::Limited { index, times } => {
             return Err(over_limit(
                 config.submissions_per_window as usize,
                 config.limit_window_ms(),
                 &times,
+                &kept[index].name,
+                kept.len(),
             ));
         }
     };
-    let mut submission = app
-        .store
-        .submission(id)
-        .await?
-        .ok_or_else(|| AppError::Internal("the new submission vanished".into()))?;
-    if duplicate {
-        preflight = submission.preflight.clone();
-        // Re-sending a file with another visibility is how its owner publishes or withdraws
-        // it (the duplicate is of the uploader's own method, so theirs): nothing is lost and
-        // what they asked for holds.
-        if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
-            app.store.set_visibility(id, asked).await?;
-            submission.visibility = asked;
-        }
+    if created.iter().any(|c| matches!(c, Created::New(_))) {
+        app.wake.notify_waiters();
     }
-    Ok(Accepted {
-        submission,
-        duplicate,
-        preflight,
-    })
+    let mut accepted = Vec::with_capacity(created.len());
+    for (c, k) in created.into_iter().zip(kept) {
+        let (id, duplicate) = match c {
+            Created::New(id) => (id, false),
+            Created::Duplicate(id) => (id, true),
+            Created::Limited { .. } => {
+                return Err(AppError::Internal(
+                    "the store answered a limit among created submissions".into(),
+                ));
+            }
+        };
+        let mut submission = app
+            .store
+            .submission(id)
+            .await?
+            .ok_or_else(|| AppError::Internal("the new submission vanished".into()))?;
+        let preflight = if duplicate {
+            // Re-sending a file with another visibility is how its owner publishes or
+            // withdraws it (the duplicate is of the uploader's own method, so theirs): nothing
+            // is lost and what they asked for holds.
+            if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
+                app.store.set_visibility(id, asked).await?;
+                submission.visibility = asked;
+            }
+            submission.preflight.clone()
+        } else {
+            k.preflight
+        };
+        accepted.push(Accepted {
+            submission,
+            duplicate,
+            preflight,
+        });
+    }
+    Ok(accepted)
 }
 
-/// The answer to an upload over the fair-use limit: the next one is allowed once the oldest of
-/// the last `limit` counted submissions leaves the window.
-fn over_limit(limit: usize, window_ms: i64, times: &[i64]) -> AppError {
-    let retry_at = times[times.len() - limit] + window_ms;
+/// A checked file, compressed, about to get its submission.
+struct Kept {
+    name: String,
+    sha256: String,
+    size: u64,
+    gzip: Vec<u8>,
+    dataset_id: i64,
+    estimates_count: usize,
+    preflight: Preflight,
+}
+
+/// The answer to an upload over the fair-use limit at file `file` of `files`: the next one is
+/// allowed once the oldest of the last `limit` counted submissions leaves the window.
+fn over_limit(limit: usize, window_ms: i64, times: &[i64], file: &str, files: usize) -> AppError {
+    let retry_at = times
+        .len()
+        .checked_sub(limit)
+        .and_then(|i| times.get(i))
+        .map_or_else(now_ms, |t| t + window_ms);
+    let none = if files > 1 {
+        format!("; none of the {files} files was submitted")
+    } else {
+        String::new()
+    };
     AppError::TooMany {
         message: format!(
-            "at most {limit} submissions per dataset within {} s: the next one is allowed in {} s",
+            "{file}: at most {limit} submissions per dataset within {} s: the next one is \
+             allowed in {} s{none}",
             window_ms / 1000,
             ((retry_at - now_ms()).max(0) + 999) / 1000
         ),

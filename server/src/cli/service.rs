@@ -47,9 +47,14 @@ pub enum DatasetCommand {
         #[arg(long, default_value_t = SynthOptions::default().images_per_scene)]
         images_per_scene: u32,
         /// Lay it out as this core BOP dataset is published (lmo, tless, tudl, icbin, itodd,
-        /// hb, ycbv: split folder, camera file, depth scale, gray images) instead of plainly.
-        #[arg(long)]
+        /// hb, ycbv: split folder, camera file, depth scale, gray images, image size and
+        /// file formats) instead of plainly.
+        #[arg(long, conflicts_with = "size")]
         layout: Option<String>,
+        /// Image size WIDTHxHEIGHT of a plain dataset (the intrinsics scale with it), e.g. to
+        /// compare with a miniature of the same size.
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
     },
     /// Write the demo result files (precise, noisy, rough) for a synthetic dataset into OUT.
     DemoResults {
@@ -58,6 +63,19 @@ pub enum DatasetCommand {
         #[arg(long, default_value_t = 11)]
         seed: u64,
     },
+}
+
+/// `WIDTHxHEIGHT`, both positive.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let parsed = s
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)));
+    match parsed {
+        Some((w, h)) if w > 0 && h > 0 && w <= 8192 && h <= 8192 => Ok((w, h)),
+        _ => Err(format!(
+            "`{s}` is no image size: expected WIDTHxHEIGHT, e.g. 720x540 (at most 8192x8192)"
+        )),
+    }
 }
 
 fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
@@ -148,11 +166,13 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             scenes,
             images_per_scene,
             layout,
+            size,
         } => {
             let opts = SynthOptions {
                 seed,
                 scenes,
                 images_per_scene,
+                image_size: size.unwrap_or(SynthOptions::default().image_size),
             };
             match layout {
                 None => write_dataset(&dir, &opts)?,
@@ -166,10 +186,7 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
                     };
                     write_core_miniature(&dir, layout, &opts)?;
                     let (w, h) = layout.published_size;
-                    println!(
-                        "laid out as {name} is published, except the image size: {w} x {h} there, \
-                         the synthetic 640 x 480 here"
-                    );
+                    println!("laid out as {name} is published, {w} x {h}");
                 }
             }
             println!("wrote a synthetic BOP dataset to {}", dir.display());

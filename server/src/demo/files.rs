@@ -154,6 +154,32 @@ pub(super) fn write_rgb_png(path: &Path, size: (u32, u32), rgb: &[u8]) -> Result
     write_png(path, size, png::ColorType::Rgb, png::BitDepth::Eight, rgb)
 }
 
+/// A TIFF of one grayscale image (`C`: 8 or 16 bits), uncompressed: the baseline every TIFF
+/// reader knows, as ITODD's depth and gray images are TIFFs.
+fn write_tiff<C: tiff::encoder::colortype::ColorType>(
+    path: &Path,
+    (width, height): (u32, u32),
+    samples: &[C::Inner],
+) -> Result<()>
+where
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    let mut out = create(path)?;
+    tiff::encoder::TiffEncoder::new(&mut out)
+        .and_then(|mut e| e.write_image::<C>(width, height, samples))
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    out.flush()
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+pub(super) fn write_depth_tiff(path: &Path, size: (u32, u32), values: &[u16]) -> Result<()> {
+    write_tiff::<tiff::encoder::colortype::Gray16>(path, size, values)
+}
+
+pub(super) fn write_gray_tiff(path: &Path, size: (u32, u32), gray: &[u8]) -> Result<()> {
+    write_tiff::<tiff::encoder::colortype::Gray8>(path, size, gray)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,17 +1,21 @@
 //! Miniatures of the seven core BOP datasets as they are published: the synthetic dataset
-//! rearranged into each one's folder and file names, split type, camera file, depth scale,
-//! targets files and image modality, so that tests load every layout the loader must know
-//! without the gigabytes of the real ones.
+//! rendered at each one's published image size and rearranged into its folder and file names,
+//! split type, camera file, depth scale, targets files, image modality and image file format
+//! (ITODD's TIFFs), so that tests load every layout the loader must know without the gigabytes
+//! of the real ones.
 //!
-//! The image content stays the synthetic dataset's (640 x 480, LINEMOD's intrinsics): scores
-//! on a miniature must equal those on the plain layout, and only the layout may differ.
-//! The published image sizes are kept in [`CoreLayout::published_size`].
+//! The scenes stay the synthetic dataset's, seen through LINEMOD's intrinsics scaled to the
+//! published size: scores on a miniature must equal those on a plain dataset of the same size,
+//! and only the layout may differ. Sizes and formats are those of bop_toolkit's
+//! `dataset_params.py` for the test split (of the default split type).
 
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 
-use super::files::{write_depth_png, write_gray_png, write_json_list};
+use super::files::{
+    write_depth_png, write_depth_tiff, write_gray_png, write_gray_tiff, write_json_list,
+};
 use super::{SynthOptions, write_dataset};
 
 /// How one core BOP dataset lays out its test split (after bop_toolkit's `dataset_params.py`
@@ -28,8 +32,10 @@ pub struct CoreLayout {
     pub depth_scale: f64,
     /// Grayscale images only (`gray/` instead of `rgb/`).
     pub gray: bool,
-    /// (width, height) of the published test images.
+    /// (width, height) of the published test images, which the miniature has too.
     pub published_size: (u32, u32),
+    /// Depth and gray images as TIFF (`.tif`, ITODD) instead of PNG.
+    pub tiff: bool,
 }
 
 /// LM-O, T-LESS, TUD-L, IC-BIN, ITODD, HB and YCB-V, the datasets of the BOP leaderboards'
@@ -42,6 +48,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 1.0,
         gray: false,
         published_size: (640, 480),
+        tiff: false,
     },
     CoreLayout {
         name: "tless",
@@ -50,6 +57,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 0.1,
         gray: false,
         published_size: (720, 540),
+        tiff: false,
     },
     CoreLayout {
         name: "tudl",
@@ -58,6 +66,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 1.0,
         gray: false,
         published_size: (640, 480),
+        tiff: false,
     },
     CoreLayout {
         name: "icbin",
@@ -66,6 +75,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 0.1,
         gray: false,
         published_size: (640, 480),
+        tiff: false,
     },
     CoreLayout {
         name: "itodd",
@@ -74,6 +84,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 0.1,
         gray: true,
         published_size: (1280, 960),
+        tiff: true,
     },
     CoreLayout {
         name: "hb",
@@ -82,6 +93,7 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 0.1,
         gray: false,
         published_size: (640, 480),
+        tiff: false,
     },
     CoreLayout {
         name: "ycbv",
@@ -90,15 +102,20 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
         depth_scale: 0.1,
         gray: false,
         published_size: (640, 480),
+        tiff: false,
     },
 ];
 
-/// Writes the synthetic dataset of `opts` into `dir` laid out as `layout`: the split folder
-/// `test` or `test_{type}`, the camera file, depth PNGs and `depth_scale` in the layout's
-/// unit, `gray/` images for grayscale datasets, and besides `test_targets_bop19.json` the
-/// BOP'24 image list `test_targets_bop24.json`.
+/// Writes the synthetic dataset of `opts` into `dir` at the layout's published image size, laid
+/// out as `layout`: the split folder `test` or `test_{type}`, the camera file, depth images
+/// (PNG or TIFF) and `depth_scale` in the layout's unit, `gray/` images for grayscale datasets,
+/// and besides `test_targets_bop19.json` the BOP'24 image list `test_targets_bop24.json`.
 pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions) -> Result<()> {
-    write_dataset(dir, opts)?;
+    let opts = SynthOptions {
+        image_size: layout.published_size,
+        ..opts.clone()
+    };
+    write_dataset(dir, &opts)?;
     let split = match layout.split_type {
         Some(t) => format!("test_{t}"),
         None => "test".to_string(),
@@ -127,14 +144,17 @@ pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions
             cam["depth_scale"] = layout.depth_scale.into();
             images.push(serde_json::json!({"im_id": im_id, "scene_id": scene_id}));
             let name = format!("{im_id:06}.png");
-            rescale_depth(
-                &scene.join("depth").join(&name),
-                plain_scale / layout.depth_scale,
-            )?;
+            let depth = scene.join("depth").join(&name);
+            rescale_depth(&depth, plain_scale / layout.depth_scale, layout.tiff)?;
             if layout.gray {
                 let gray_dir = scene.join("gray");
                 std::fs::create_dir_all(&gray_dir)?;
-                to_gray(&scene.join("rgb").join(&name), &gray_dir.join(&name))?;
+                to_gray(
+                    &scene.join("rgb").join(&name),
+                    &gray_dir,
+                    *im_id,
+                    layout.tiff,
+                )?;
             }
         }
         if layout.gray {
@@ -156,9 +176,10 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     serde_json::from_slice(&bytes).with_context(|| format!("{} is not valid", path.display()))
 }
 
-/// Rewrites a 16-bit depth PNG with every value times `factor`, rounded (no change at 1).
-fn rescale_depth(path: &Path, factor: f64) -> Result<()> {
-    if factor == 1.0 {
+/// Rewrites a 16-bit depth PNG with every value times `factor`, rounded, as a PNG or, with
+/// `tiff`, as the TIFF `{stem}.tif` in place of the PNG.
+fn rescale_depth(path: &Path, factor: f64, tiff: bool) -> Result<()> {
+    if factor == 1.0 && !tiff {
         return Ok(());
     }
     let (size, bytes) = read_png(path)?;
@@ -166,11 +187,17 @@ fn rescale_depth(path: &Path, factor: f64) -> Result<()> {
         .chunks_exact(2)
         .map(|b| (f64::from(u16::from_be_bytes([b[0], b[1]])) * factor).round() as u16)
         .collect();
-    write_depth_png(path, size, &values)
+    if tiff {
+        write_depth_tiff(&path.with_extension("tif"), size, &values)?;
+        std::fs::remove_file(path).with_context(|| format!("cannot remove {}", path.display()))
+    } else {
+        write_depth_png(path, size, &values)
+    }
 }
 
-/// Writes the luma (ITU-R BT.601) of an 8-bit RGB PNG as an 8-bit grayscale PNG.
-fn to_gray(rgb_path: &Path, gray_path: &Path) -> Result<()> {
+/// Writes the luma (ITU-R BT.601) of an 8-bit RGB PNG as the 8-bit grayscale image `im_id` of
+/// `gray_dir`, PNG or TIFF.
+fn to_gray(rgb_path: &Path, gray_dir: &Path, im_id: u32, tiff: bool) -> Result<()> {
     let (size, rgb) = read_png(rgb_path)?;
     let gray: Vec<u8> = rgb
         .chunks_exact(3)
@@ -179,7 +206,11 @@ fn to_gray(rgb_path: &Path, gray_path: &Path) -> Result<()> {
                 as u8
         })
         .collect();
-    write_gray_png(gray_path, size, &gray)
+    if tiff {
+        write_gray_tiff(&gray_dir.join(format!("{im_id:06}.tif")), size, &gray)
+    } else {
+        write_gray_png(&gray_dir.join(format!("{im_id:06}.png")), size, &gray)
+    }
 }
 
 fn read_png(path: &Path) -> Result<((u32, u32), Vec<u8>)> {

@@ -26,10 +26,26 @@ use super::SynthOptions;
 use super::files::{write_depth_png, write_json_object, write_rgb_png};
 use super::shapes::{Shape, TOWER, rotation};
 
+/// The size the scenes are laid out at; other sizes see them through scaled intrinsics.
 pub(super) const WIDTH: u32 = 640;
 pub(super) const HEIGHT: u32 = 480;
-/// The intrinsics of the LINEMOD Kinect, the best known BOP camera.
-pub(super) const CAM_K: [f64; 9] = [572.4, 0.0, 325.3, 0.0, 573.6, 242.0, 0.0, 0.0, 1.0];
+/// The intrinsics of the LINEMOD Kinect, the best known BOP camera, at 640 x 480.
+const CAM_K: [f64; 9] = [572.4, 0.0, 325.3, 0.0, 573.6, 242.0, 0.0, 0.0, 1.0];
+
+/// The intrinsics for images of `size`: LINEMOD's scaled, so that the camera sees the same
+/// field of view at every size (a published size then shows the same scenes).
+pub(super) fn cam_k((width, height): (u32, u32)) -> [f64; 9] {
+    let (sx, sy) = (
+        f64::from(width) / f64::from(WIDTH),
+        f64::from(height) / f64::from(HEIGHT),
+    );
+    let mut k = CAM_K;
+    k[0] *= sx;
+    k[2] *= sx;
+    k[4] *= sy;
+    k[5] *= sy;
+    k
+}
 /// Depth PNG values are tenths of a millimetre, as in T-LESS and YCB-V, rather than the
 /// millimetres of LINEMOD: the demo then exercises the scaling of depth images, which a
 /// dataset in millimetres would leave untested, and keeps sub-millimetre steps.
@@ -122,14 +138,14 @@ pub(super) fn write_scene(
             truncated: im_id == 1 % n,
             hidden: im_id == 2 % n,
         };
-        let image = make_image(&mut rng, shapes, roles);
+        let image = make_image(&mut rng, shapes, roles, opts.image_size);
         let name = format!("{im_id:06}.png");
         write_depth_png(
             &dir.join("depth").join(&name),
-            (WIDTH, HEIGHT),
+            opts.image_size,
             &image.depth,
         )?;
-        write_rgb_png(&dir.join("rgb").join(&name), (WIDTH, HEIGHT), &image.rgb)?;
+        write_rgb_png(&dir.join("rgb").join(&name), opts.image_size, &image.rgb)?;
 
         let mut counts = BTreeMap::new();
         for (gt, info) in image.gt.iter().zip(&image.info) {
@@ -146,7 +162,7 @@ pub(super) fn write_scene(
         cameras.insert(
             im_id,
             CameraEntry {
-                cam_k: CAM_K,
+                cam_k: cam_k(opts.image_size),
                 depth_scale: DEPTH_SCALE,
             },
         );
@@ -308,6 +324,8 @@ fn direction(angle: f64) -> [f64; 2] {
 struct View {
     w2c: Pose,
     eye: Vec3,
+    width: u32,
+    height: u32,
     k: Intrinsics,
     /// The same camera on bop_toolkit's canvas three times the image size, whose centre third
     /// is the image: renders there include what lies beyond the image border.
@@ -315,18 +333,21 @@ struct View {
 }
 
 impl View {
-    fn looking_at(eye: Vec3, target: Vec3) -> View {
+    fn looking_at(eye: Vec3, target: Vec3, (width, height): (u32, u32)) -> View {
         let z = (target - eye).normalize();
         let x = z.cross(&Vec3::z()).normalize();
         let y = z.cross(&x);
         let r = Mat3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
-        let mut large = CAM_K;
-        large[2] += f64::from(WIDTH);
-        large[5] += f64::from(HEIGHT);
+        let k = cam_k((width, height));
+        let mut large = k;
+        large[2] += f64::from(width);
+        large[5] += f64::from(height);
         View {
             w2c: Pose::new(r, -(r * eye)),
             eye,
-            k: Intrinsics::from_row_major(&CAM_K),
+            width,
+            height,
+            k: Intrinsics::from_row_major(&k),
             k_large: Intrinsics::from_row_major(&large),
         }
     }
@@ -358,20 +379,25 @@ impl View {
             &corners,
             pose,
             &self.k_large,
-            3 * WIDTH,
-            3 * HEIGHT,
+            3 * self.width,
+            3 * self.height,
         )
     }
 }
 
-/// Calls `f(x, y, depth)` for the pixels of a render on the large canvas that lie in the image.
-fn for_each_in_image(w: &DepthWindow, mut f: impl FnMut(u32, u32, f32)) {
-    let xs = w.x0.max(WIDTH)..(w.x0 + w.width).min(2 * WIDTH);
-    for y in w.y0.max(HEIGHT)..(w.y0 + w.height).min(2 * HEIGHT) {
+/// Calls `f(x, y, depth)` for the pixels of a render on the large canvas that lie in the image
+/// of `width` x `height`.
+fn for_each_in_image(
+    w: &DepthWindow,
+    (width, height): (u32, u32),
+    mut f: impl FnMut(u32, u32, f32),
+) {
+    let xs = w.x0.max(width)..(w.x0 + w.width).min(2 * width);
+    for y in w.y0.max(height)..(w.y0 + w.height).min(2 * height) {
         for x in xs.clone() {
             let d = w.data[((y - w.y0) * w.width + x - w.x0) as usize];
             if d > 0.0 {
-                f(x - WIDTH, y - HEIGHT, d);
+                f(x - width, y - height, d);
             }
         }
     }
@@ -379,14 +405,19 @@ fn for_each_in_image(w: &DepthWindow, mut f: impl FnMut(u32, u32, f32)) {
 
 /// The noiseless scene: nearest surface depth (mm, 0 = none) and what it belongs to.
 struct Canvas {
+    width: u32,
+    height: u32,
     depth: Vec<f32>,
     label: Vec<u8>,
 }
 
 impl Canvas {
     fn table(view: &View) -> Canvas {
-        let size = (WIDTH * HEIGHT) as usize;
+        let (width, height) = (view.width, view.height);
+        let size = (width * height) as usize;
         let mut canvas = Canvas {
+            width,
+            height,
             depth: vec![0.0; size],
             label: vec![0; size],
         };
@@ -398,11 +429,11 @@ impl Canvas {
         let axis = |row: usize| [r[(row, 0)], r[(row, 1)], r[(row, 2)]];
         let (ax, ay, az) = (axis(0), axis(1), axis(2));
         let (k, eye) = (&view.k, view.eye);
-        for y in 0..HEIGHT {
+        for y in 0..height {
             // Sampled at the pixel centre, like the renderer.
             let b = (f64::from(y) + 0.5 - k.cy()) / k.fy();
             let row = [b * ay[0] + az[0], b * ay[1] + az[1], b * ay[2] + az[2]];
-            for x in 0..WIDTH {
+            for x in 0..width {
                 let a = (f64::from(x) + 0.5 - k.cx()) / k.fx();
                 let dir = [a * ax[0] + row[0], a * ax[1] + row[1], a * ax[2] + row[2]];
                 let z = -eye.z / dir[2];
@@ -415,7 +446,7 @@ impl Canvas {
                 }
                 // 50 mm squares.
                 let square = ((wx / 50.0).floor() + (wy / 50.0).floor()) as i64;
-                let i = (y * WIDTH + x) as usize;
+                let i = (y * width + x) as usize;
                 canvas.depth[i] = z as f32;
                 canvas.label[i] = 1 + square.rem_euclid(2) as u8;
             }
@@ -424,8 +455,9 @@ impl Canvas {
     }
 
     fn add(&mut self, render: &DepthWindow, label: u8) {
-        for_each_in_image(render, |x, y, d| {
-            let i = (y * WIDTH + x) as usize;
+        let width = self.width;
+        for_each_in_image(render, (width, self.height), |x, y, d| {
+            let i = (y * width + x) as usize;
             if self.depth[i] == 0.0 || d < self.depth[i] {
                 self.depth[i] = d;
                 self.label[i] = label;
@@ -437,8 +469,8 @@ impl Canvas {
     /// everything on the canvas.
     fn visible_fraction(&self, render: &DepthWindow) -> f64 {
         let mut seen = 0usize;
-        for_each_in_image(render, |x, y, d| {
-            let here = self.depth[(y * WIDTH + x) as usize];
+        for_each_in_image(render, (self.width, self.height), |x, y, d| {
+            let here = self.depth[(y * self.width + x) as usize];
             if here == 0.0 || d <= here {
                 seen += 1;
             }
@@ -447,44 +479,59 @@ impl Canvas {
     }
 }
 
-fn make_image(rng: &mut ChaCha8Rng, shapes: &[Shape], roles: Roles) -> ImageData {
-    let (view, target) = camera(rng);
-    let mut placed = lay_out(rng, shapes, &view, target, roles);
+/// One image of `size`. The scene is laid out (and its hidden instance placed) at 640 x 480
+/// before anything is drawn at `size`, so the ground truth is the same at every size.
+fn make_image(rng: &mut ChaCha8Rng, shapes: &[Shape], roles: Roles, size: (u32, u32)) -> ImageData {
+    let (eye, target) = camera(rng);
+    let base = View::looking_at(eye, target, (WIDTH, HEIGHT));
+    let mut placed = lay_out(rng, shapes, &base, target, roles);
     let mut renderer = Renderer::new();
-    let mut renders: Vec<DepthWindow> = placed
-        .iter()
-        .map(|p| view.render(&mut renderer, &shapes[p.shape], &view.model_to_camera(p)))
-        .collect();
-    let mut canvas = Canvas::table(&view);
-    for (i, r) in renders.iter().enumerate() {
-        canvas.add(r, FIRST_INSTANCE_LABEL + i as u8);
-    }
+    let draw = |view: &View, renderer: &mut Renderer, placed: &[Placed]| {
+        let renders: Vec<DepthWindow> = placed
+            .iter()
+            .map(|p| view.render(renderer, &shapes[p.shape], &view.model_to_camera(p)))
+            .collect();
+        let mut canvas = Canvas::table(view);
+        for (i, r) in renders.iter().enumerate() {
+            canvas.add(r, FIRST_INSTANCE_LABEL + i as u8);
+        }
+        (renders, canvas)
+    };
+    let (mut renders, mut canvas) = draw(&base, &mut renderer, &placed);
     if let Some(tower) = placed
         .first()
         .filter(|p| roles.hidden && p.shape == TOWER.0)
     {
-        let hidden = hide_one(rng, shapes, &view, tower, &placed, &canvas, &mut renderer);
+        let hidden = hide_one(rng, shapes, &base, tower, &placed, &canvas, &mut renderer);
         if let Some((p, render)) = hidden {
             canvas.add(&render, FIRST_INSTANCE_LABEL + placed.len() as u8);
             placed.push(p);
             renders.push(render);
         }
     }
+    let view = if size == (WIDTH, HEIGHT) {
+        base
+    } else {
+        let view = View::looking_at(eye, target, size);
+        (renders, canvas) = draw(&view, &mut renderer, &placed);
+        view
+    };
 
-    let depth = sensor(rng, &canvas.depth);
-    let rays = PixelRays::new(&view.k, WIDTH, HEIGHT);
+    let (width, height) = size;
+    let depth = sensor(rng, &canvas.depth, size);
+    let rays = PixelRays::new(&view.k, width, height);
     let scale = DEPTH_SCALE as f32;
     let mut measured = Vec::with_capacity(depth.len());
-    for y in 0..HEIGHT {
-        for x in 0..WIDTH {
+    for y in 0..height {
+        for x in 0..width {
             // The millimetres the evaluator reads: f32 value times f32 scale.
-            let mm = f32::from(depth[(y * WIDTH + x) as usize]) * scale;
+            let mm = f32::from(depth[(y * width + x) as usize]) * scale;
             measured.push(rays.distance(x, y, mm));
         }
     }
     let info = renders
         .iter()
-        .map(|r| gt_info(r, &rays, &measured))
+        .map(|r| gt_info(r, size, &rays, &measured))
         .collect();
     let gt = placed
         .iter()
@@ -508,7 +555,7 @@ fn make_image(rng: &mut ChaCha8Rng, shapes: &[Shape], roles: Roles) -> ImageData
 
 /// A camera looking down at the table from 30 to 60 degrees above it, and the point on the
 /// table it looks at.
-fn camera(rng: &mut ChaCha8Rng) -> (View, Vec3) {
+fn camera(rng: &mut ChaCha8Rng) -> (Vec3, Vec3) {
     let elevation = rng.random_range(30f64..60.0).to_radians();
     let azimuth = rng.random_range(0.0..TAU);
     let distance = rng.random_range(620.0..880.0);
@@ -524,7 +571,7 @@ fn camera(rng: &mut ChaCha8Rng) -> (View, Vec3) {
                 elevation.cos() * azimuth.sin(),
                 elevation.sin(),
             );
-    (View::looking_at(eye, target), target)
+    (eye, target)
 }
 
 /// A cluster of objects next to each other around `target`, plus the special instances of
@@ -582,9 +629,9 @@ fn lay_out(
             let u = if rng.random_bool(0.5) {
                 inset
             } else {
-                f64::from(WIDTH) - inset
+                f64::from(view.width) - inset
             };
-            let v = rng.random_range(0.35..0.7) * f64::from(HEIGHT);
+            let v = rng.random_range(0.35..0.7) * f64::from(view.height);
             let Some(at) = view.on_table(u, v) else {
                 continue;
             };
@@ -637,7 +684,7 @@ fn hide_one(
 
 /// The depth image as a sensor would deliver it: Gaussian noise, quantised to units of
 /// `DEPTH_SCALE`, no measurement on the far side of depth edges, and small holes.
-fn sensor(rng: &mut ChaCha8Rng, clean: &[f32]) -> Vec<u16> {
+fn sensor(rng: &mut ChaCha8Rng, clean: &[f32], (width, height): (u32, u32)) -> Vec<u16> {
     let mut depth: Vec<u16> = clean
         .iter()
         .map(|&d| {
@@ -656,7 +703,7 @@ fn sensor(rng: &mut ChaCha8Rng, clean: &[f32]) -> Vec<u16> {
 
     // A pixel just beyond a jump in depth lies in the shadow of the nearer surface, where
     // the sensor measures nothing.
-    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    let (w, h) = (width as usize, height as usize);
     let limit = DISCONTINUITY_MM / DEPTH_SCALE;
     let behind = |d: u16, other: u16| other > 0 && f64::from(d) - f64::from(other) > limit;
     let shadowed: Vec<usize> = (0..w * h)
@@ -709,7 +756,12 @@ impl Bounds {
 
 /// `calc_gt_info.py` for one instance rendered on the large canvas, against the distance map
 /// of the measured depth.
-fn gt_info(render: &DepthWindow, rays: &PixelRays, measured: &[f64]) -> GtInfo {
+fn gt_info(
+    render: &DepthWindow,
+    (width, height): (u32, u32),
+    rays: &PixelRays,
+    measured: &[f64],
+) -> GtInfo {
     let mut all = Bounds::default();
     let mut px_count_all = 0;
     for y in 0..render.height {
@@ -717,16 +769,16 @@ fn gt_info(render: &DepthWindow, rays: &PixelRays, measured: &[f64]) -> GtInfo {
             if render.data[(y * render.width + x) as usize] > 0.0 {
                 px_count_all += 1;
                 all.add(
-                    i64::from(render.x0 + x) - i64::from(WIDTH),
-                    i64::from(render.y0 + y) - i64::from(HEIGHT),
+                    i64::from(render.x0 + x) - i64::from(width),
+                    i64::from(render.y0 + y) - i64::from(height),
                 );
             }
         }
     }
     let (mut px_count_valid, mut px_count_visib) = (0, 0);
     let mut visib = Bounds::default();
-    for_each_in_image(render, |x, y, d| {
-        let test = measured[(y * WIDTH + x) as usize];
+    for_each_in_image(render, (width, height), |x, y, d| {
+        let test = measured[(y * width + x) as usize];
         if test > 0.0 {
             px_count_valid += 1;
         }
@@ -757,14 +809,15 @@ fn gt_info(render: &DepthWindow, rays: &PixelRays, measured: &[f64]) -> GtInfo {
 /// Flat colours, lit by a light above the camera using normals from the noiseless depth.
 fn colour_image(view: &View, canvas: &Canvas, colours: &[[u8; 3]]) -> Vec<u8> {
     let light = Vec3::new(0.2, -0.5, -1.0).normalize();
+    let (width, height) = (canvas.width, canvas.height);
     let point = |x: u32, y: u32| {
-        let d = f64::from(canvas.depth[(y * WIDTH + x) as usize]);
+        let d = f64::from(canvas.depth[(y * width + x) as usize]);
         view.ray(f64::from(x) + 0.5, f64::from(y) + 0.5) * d
     };
-    let mut rgb = Vec::with_capacity((WIDTH * HEIGHT * 3) as usize);
-    for y in 0..HEIGHT {
-        for x in 0..WIDTH {
-            let i = (y * WIDTH + x) as usize;
+    let mut rgb = Vec::with_capacity((width * height * 3) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let i = (y * width + x) as usize;
             let label = canvas.label[i];
             let colour = match label {
                 0 => BACKGROUND,
@@ -772,10 +825,10 @@ fn colour_image(view: &View, canvas: &Canvas, colours: &[[u8; 3]]) -> Vec<u8> {
                 _ => {
                     let base = colours[usize::from(label - FIRST_INSTANCE_LABEL)];
                     let same = |j: usize| canvas.label[j] == label;
-                    let shade = if x + 1 < WIDTH
-                        && y + 1 < HEIGHT
+                    let shade = if x + 1 < width
+                        && y + 1 < height
                         && same(i + 1)
-                        && same(i + WIDTH as usize)
+                        && same(i + width as usize)
                     {
                         let p = point(x, y);
                         let n = (point(x, y + 1) - p).cross(&(point(x + 1, y) - p));

@@ -1,7 +1,8 @@
-//! Submissions: an uploaded result file for a method and a dataset, with its lifecycle. A new
-//! submission is created in one transaction with its method (get or create), the duplicate
-//! check and the fair-use count, so that parallel uploads of one user can neither exceed the
-//! limit nor trip over each other's new method.
+//! Submissions: an uploaded result file for a method and a dataset, with its lifecycle. The
+//! submissions of one upload are created in one transaction with their method (get or
+//! create), the duplicate checks and the fair-use counts, so that parallel uploads of one user
+//! can neither exceed the limit nor trip over each other's new method, and an upload of
+//! several files is stored whole or not at all.
 
 use std::fmt;
 use std::str::FromStr;
@@ -164,6 +165,16 @@ pub enum Created {
     Limited { times: Vec<i64> },
 }
 
+/// What [`Store::create_submissions`] did: all of an upload, or nothing.
+#[derive(Debug, PartialEq)]
+pub enum CreatedAll {
+    /// Each one, in order (none is `Limited`).
+    All(Vec<Created>),
+    /// The `index`th was over the fair-use limit, so nothing was written; the counted
+    /// submissions' times, oldest first.
+    Limited { index: usize, times: Vec<i64> },
+}
+
 /// What [`Store::delete_submission`] removed.
 #[derive(Debug, PartialEq)]
 pub struct Deleted {
@@ -237,122 +248,67 @@ pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
 }
 
 impl Store {
-    /// Creates a submission and, if new, its method, in one transaction: the duplicate check
-    /// first (a re-upload of the same file answers with the existing submission, whatever the
-    /// limit), then the fair-use count, then the inserts. Parallel calls for one user are
-    /// serialised (SQLite: the write lock; PostgreSQL: the user's row), so the count is exact.
+    /// Creates one submission; see [`Store::create_submissions`].
     pub async fn create_submission(
         &self,
         new: &NewSubmission<'_>,
         fair_use: Option<FairUse>,
     ) -> StoreResult<Created> {
+        Ok(
+            match self
+                .create_submissions(std::slice::from_ref(new), fair_use)
+                .await?
+            {
+                // One in, one out.
+                CreatedAll::All(created) => {
+                    created.into_iter().next().ok_or(StoreError::NotFound)?
+                }
+                CreatedAll::Limited { times, .. } => Created::Limited { times },
+            },
+        )
+    }
+
+    /// Creates the submissions of one upload (one per dataset, all of one owner) and, if new,
+    /// their method, in ONE transaction, so an upload is stored whole or not at all: a limit
+    /// met at the fourth file must not leave the first three behind. For each, in order: the
+    /// duplicate check (a re-upload of the same file answers with the existing submission,
+    /// whatever the limit), then the fair-use count, then the inserts. Parallel calls for one
+    /// user are serialised (SQLite: the write lock; PostgreSQL: the user's row), so the count
+    /// is exact.
+    pub async fn create_submissions(
+        &self,
+        news: &[NewSubmission<'_>],
+        fair_use: Option<FairUse>,
+    ) -> StoreResult<CreatedAll> {
         let mut tx = self.write_transaction().await?;
         if self.backend == Backend::Postgres {
-            sqlx::query("SELECT id FROM users WHERE id = $1 FOR UPDATE")
-                .bind(new.owner_id)
-                .fetch_optional(&mut *tx)
-                .await?;
-        }
-        let method_id: Option<i64> =
-            sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
-                .bind(new.owner_id)
-                .bind(new.method.as_str())
-                .fetch_optional(&mut *tx)
-                .await?
-                .map(|r| r.try_get("id"))
-                .transpose()?;
-        if let Some(method_id) = method_id {
-            let same = sqlx::query(
-                "SELECT id FROM submissions WHERE method_id = $1 AND dataset_id = $2 \
-                 AND file_sha256 = $3 AND protocols = $4",
-            )
-            .bind(method_id)
-            .bind(new.dataset_id)
-            .bind(new.file_sha256)
-            .bind(protocols_to_text(new.protocols))
-            .fetch_optional(&mut *tx)
-            .await?;
-            if let Some(row) = same {
-                tx.rollback().await?;
-                return Ok(Created::Duplicate(row.try_get("id")?));
+            let mut owners: Vec<i64> = news.iter().map(|n| n.owner_id).collect();
+            owners.sort_unstable();
+            owners.dedup();
+            for owner in owners {
+                sqlx::query("SELECT id FROM users WHERE id = $1 FOR UPDATE")
+                    .bind(owner)
+                    .fetch_optional(&mut *tx)
+                    .await?;
             }
         }
-        if let Some(limit) = fair_use {
-            let times: Vec<i64> = sqlx::query(
-                "SELECT created_at FROM submissions WHERE owner_id = $1 AND dataset_id = $2 \
-                 AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') ORDER BY created_at",
-            )
-            .bind(new.owner_id)
-            .bind(new.dataset_id)
-            .bind(limit.since)
-            .fetch_all(&mut *tx)
-            .await?
-            .iter()
-            .map(|r| r.try_get("created_at"))
-            .collect::<Result<_, _>>()?;
-            if times.len() >= limit.limit {
-                tx.rollback().await?;
-                return Ok(Created::Limited { times });
-            }
-        }
-        let now = now_ms();
+        let mut created = Vec::with_capacity(news.len());
         let mut meta_changed = false;
-        let method_id = match method_id {
-            Some(id) => {
-                // A method's training data and input are columns of the boards.
-                if update_method_meta(&mut tx, id, new.meta).await? {
-                    board_version::bump(&mut tx).await?;
-                    meta_changed = true;
+        for (index, new) in news.iter().enumerate() {
+            match create_one(&mut tx, new, fair_use).await? {
+                (Created::Limited { times }, _) => {
+                    tx.rollback().await?;
+                    return Ok(CreatedAll::Limited { index, times });
                 }
-                id
+                (c, changed) => {
+                    meta_changed |= changed;
+                    created.push(c);
+                }
             }
-            None => sqlx::query(
-                "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-                 modality, created_at, owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id",
-            )
-            .bind(new.method.as_str())
-            .bind(new.meta.description.as_str())
-            .bind(new.meta.paper_url.as_str())
-            .bind(new.meta.code_url.as_str())
-            .bind(new.meta.training_data.map_or("", |t| t.as_str()))
-            .bind(new.meta.modality.map_or("", |m| m.as_str()))
-            .bind(now)
-            .bind(new.owner_id)
-            .fetch_one(&mut *tx)
-            .await?
-            .try_get("id")?,
-        };
-        let preflight = serde_json::to_string(new.preflight).map_err(|e| StoreError::Corrupt {
-            column: "preflight_json",
-            value: e.to_string(),
-        })?;
-        let id: i64 = sqlx::query(
-            "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
-             file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
-             owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12) RETURNING id",
-        )
-        .bind(method_id)
-        .bind(new.dataset_id)
-        .bind(protocols_to_text(new.protocols))
-        .bind(i64::from(new.visibility == Visibility::Public))
-        .bind(new.file_name)
-        .bind(new.file_sha256)
-        .bind(new.file_size)
-        .bind(new.estimates_count)
-        .bind(new.hardware.as_str())
-        .bind(preflight)
-        .bind(now)
-        .bind(new.owner_id)
-        .fetch_one(&mut *tx)
-        .await?
-        .try_get("id")?;
-        // In the same transaction: no worker can find the job without its file.
-        super::files::put_file(&mut tx, new.file_sha256, new.file_size, new.file_gzip).await?;
-        tx.commit().await?;
-        if meta_changed {
-            self.board_changed();
         }
-        Ok(Created::New(id))
+        // A method's training data and input are columns of the boards.
+        self.commit_board_change(tx, meta_changed).await?;
+        Ok(CreatedAll::All(created))
     }
 
     pub async fn submission(&self, id: i64) -> StoreResult<Option<SubmissionRow>> {
@@ -514,6 +470,106 @@ impl Store {
             file_sha256: sha,
         }))
     }
+}
+
+/// One submission of [`Store::create_submissions`] inside its transaction, and whether it
+/// changed its method's metadata; `Limited` writes nothing (the caller rolls back the whole
+/// upload).
+async fn create_one(
+    tx: &mut sqlx::Transaction<'static, sqlx::Any>,
+    new: &NewSubmission<'_>,
+    fair_use: Option<FairUse>,
+) -> StoreResult<(Created, bool)> {
+    let method_id: Option<i64> =
+        sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
+            .bind(new.owner_id)
+            .bind(new.method.as_str())
+            .fetch_optional(&mut **tx)
+            .await?
+            .map(|r| r.try_get("id"))
+            .transpose()?;
+    if let Some(method_id) = method_id {
+        let same = sqlx::query(
+            "SELECT id FROM submissions WHERE method_id = $1 AND dataset_id = $2 \
+             AND file_sha256 = $3 AND protocols = $4",
+        )
+        .bind(method_id)
+        .bind(new.dataset_id)
+        .bind(new.file_sha256)
+        .bind(protocols_to_text(new.protocols))
+        .fetch_optional(&mut **tx)
+        .await?;
+        if let Some(row) = same {
+            return Ok((Created::Duplicate(row.try_get("id")?), false));
+        }
+    }
+    if let Some(limit) = fair_use {
+        let times: Vec<i64> = sqlx::query(
+            "SELECT created_at FROM submissions WHERE owner_id = $1 AND dataset_id = $2 \
+             AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') ORDER BY created_at",
+        )
+        .bind(new.owner_id)
+        .bind(new.dataset_id)
+        .bind(limit.since)
+        .fetch_all(&mut **tx)
+        .await?
+        .iter()
+        .map(|r| r.try_get("created_at"))
+        .collect::<Result<_, _>>()?;
+        if times.len() >= limit.limit {
+            return Ok((Created::Limited { times }, false));
+        }
+    }
+    let now = now_ms();
+    let mut meta_changed = false;
+    let method_id = match method_id {
+        Some(id) => {
+            meta_changed = update_method_meta(tx, id, new.meta).await?;
+            id
+        }
+        None => sqlx::query(
+            "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
+             modality, created_at, owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id",
+        )
+        .bind(new.method.as_str())
+        .bind(new.meta.description.as_str())
+        .bind(new.meta.paper_url.as_str())
+        .bind(new.meta.code_url.as_str())
+        .bind(new.meta.training_data.map_or("", |t| t.as_str()))
+        .bind(new.meta.modality.map_or("", |m| m.as_str()))
+        .bind(now)
+        .bind(new.owner_id)
+        .fetch_one(&mut **tx)
+        .await?
+        .try_get("id")?,
+    };
+    let preflight = serde_json::to_string(new.preflight).map_err(|e| StoreError::Corrupt {
+        column: "preflight_json",
+        value: e.to_string(),
+    })?;
+    let id: i64 = sqlx::query(
+        "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
+         file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
+         owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12) RETURNING id",
+    )
+    .bind(method_id)
+    .bind(new.dataset_id)
+    .bind(protocols_to_text(new.protocols))
+    .bind(i64::from(new.visibility == Visibility::Public))
+    .bind(new.file_name)
+    .bind(new.file_sha256)
+    .bind(new.file_size)
+    .bind(new.estimates_count)
+    .bind(new.hardware.as_str())
+    .bind(preflight)
+    .bind(now)
+    .bind(new.owner_id)
+    .fetch_one(&mut **tx)
+    .await?
+    .try_get("id")?;
+    // In the same transaction: no worker can find the job without its file.
+    super::files::put_file(tx, new.file_sha256, new.file_size, new.file_gzip).await?;
+    Ok((Created::New(id), meta_changed))
 }
 
 /// Updates the metadata fields a new upload gives; the others keep their stored values. True
