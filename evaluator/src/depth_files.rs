@@ -261,7 +261,10 @@ fn tiff_error(path: &Path, e: tiff::TiffError) -> Error {
         // The decoder reads offsets the file states: running out of bytes is a broken file,
         // not a failing disk.
         tiff::TiffError::IoError(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
-            Error::format(path, "invalid TIFF: the file ends before the data it points to")
+            Error::format(
+                path,
+                "invalid TIFF: the file ends before the data it points to",
+            )
         }
         tiff::TiffError::IoError(e) => Error::io(path, e),
         other => Error::format(path, format!("invalid TIFF: {other}")),
