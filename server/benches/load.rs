@@ -26,7 +26,6 @@ use server::demo::{SynthOptions, write_dataset, write_demo_results};
 use server::domain::{Hardware, MethodName, Modality, TokenLabel, TrainingData, UserName};
 use server::preflight::Preflight;
 use server::store::Store;
-use server::store::datasets::DatasetRow;
 use server::store::methods::MethodMeta;
 use server::store::submissions::{Created, NewSubmission};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader as AsyncBufReader};
@@ -445,25 +444,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
     store.migrate().await?;
     let reference = Dataset::load(&datasets.join("synthA"))?;
     let ds = store
-        .register_dataset(&DatasetRow {
-            id: 0,
-            name: "synthA".into(),
-            path: datasets.join("synthA").display().to_string(),
-            objects_count: reference.objects.len() as i64,
-            scenes_count: reference.scenes.len() as i64,
-            images_count: reference
-                .scenes
-                .values()
-                .map(|s| s.images.len() as i64)
-                .sum(),
-            targets_count: reference.targets.len() as i64,
-            instances_count: reference.targets.iter().map(|t| t.inst_count as i64).sum(),
-            image_width: reference.image_size.0 as i64,
-            image_height: reference.image_size.1 as i64,
-            added_at: 0,
-            retired: false,
-            content_hash: None,
-        })
+        .register_dataset(&server::app::describe(&reference, &datasets.join("synthA")))
         .await?;
     let owner = store
         .create_user(

@@ -192,7 +192,9 @@ fn load(folder: &Path) -> Result<Dataset, String> {
     Dataset::load_with(folder, &opts).map_err(|e| e.to_string())
 }
 
-fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
+/// The row registering `ds`, found in `folder` (without its content hash, which takes a pass
+/// over the files).
+pub fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
     DatasetRow {
         id: 0,
         name: ds.name.clone(),

@@ -119,6 +119,41 @@ impl Miniatures {
     }
 }
 
+/// The submissions an upload of the seven core files answered with: one per core dataset, in
+/// order, all of one method.
+fn seven_of_one_method(r: reqwest::blocking::Response) -> Vec<Value> {
+    let body: Value = r.json().expect("json");
+    let made = body["submissions"].as_array().expect("list").clone();
+    let datasets: Vec<&str> = made
+        .iter()
+        .map(|s| s["submission"]["dataset"].as_str().expect("dataset"))
+        .collect();
+    assert_eq!(datasets, CORE);
+    let methods: Vec<&Value> = made.iter().map(|s| &s["submission"]["method_id"]).collect();
+    assert!(methods.iter().all(|m| *m == methods[0]));
+    made
+}
+
+/// Each submission, once evaluated, has the scores its file has on the plain layout
+/// (`checks`: protocol and report key).
+fn assert_scored_as_plain(base: &str, m: &Miniatures, made: &[Value], checks: &[(&str, &str)]) {
+    for s in made {
+        let done = wait_done(
+            base,
+            s["id"].as_i64().expect("id"),
+            Duration::from_secs(120),
+        );
+        let dataset = s["submission"]["dataset"].as_str().expect("dataset");
+        for (protocol, key) in checks {
+            assert_eq!(
+                done["scores"][protocol][key],
+                m.expected(dataset, protocol)[key],
+                "{dataset} {protocol}"
+            );
+        }
+    }
+}
+
 /// The scores of a report, without what names the dataset.
 fn scores(mut report: Value) -> Value {
     let o = report.as_object_mut().expect("object");
@@ -416,29 +451,9 @@ fn serves_the_core_datasets(kind: Db) {
     files[3] = m.result_for("icbin");
     let r = upload_files(&server, &[("method", "all-seven")], &files);
     assert_eq!(r.status(), 202, "{kind:?}");
-    let body: Value = r.json().expect("json");
-    let made = body["submissions"].as_array().expect("list");
-    let datasets: Vec<&str> = made
-        .iter()
-        .map(|s| s["submission"]["dataset"].as_str().expect("dataset"))
-        .collect();
-    assert_eq!(datasets, CORE);
-    let methods: Vec<&Value> = made.iter().map(|s| &s["submission"]["method_id"]).collect();
-    assert!(methods.iter().all(|m| *m == methods[0]));
+    let made = seven_of_one_method(r);
     assert_eq!(submissions_count(&server), before + 7);
-    for s in made {
-        let done = wait_done(
-            &base,
-            s["id"].as_i64().expect("id"),
-            Duration::from_secs(120),
-        );
-        let dataset = s["submission"]["dataset"].as_str().expect("dataset");
-        assert_eq!(
-            done["scores"]["bop19"]["bop19_average_recall"],
-            m.expected(dataset, "bop19")["bop19_average_recall"],
-            "{dataset}"
-        );
-    }
+    assert_scored_as_plain(&base, &m, &made, &[("bop19", "bop19_average_recall")]);
 }
 both_databases!(serves_the_core_datasets);
 
@@ -635,31 +650,14 @@ fn zip_uploads(kind: Db) {
     // The seven good ones: seven submissions of one method, scored as plain uploads.
     let r = upload_zip(&server, "zipped", "all.zip", zip_of(&entries));
     assert_eq!(r.status(), 202, "{kind:?}");
-    let body: Value = r.json().expect("json");
-    let made = body["submissions"].as_array().expect("list");
-    let datasets: Vec<&str> = made
-        .iter()
-        .map(|s| s["submission"]["dataset"].as_str().expect("dataset"))
-        .collect();
-    assert_eq!(datasets, CORE);
-    let methods: Vec<&Value> = made.iter().map(|s| &s["submission"]["method_id"]).collect();
-    assert!(methods.iter().all(|m| *m == methods[0]));
+    let made = seven_of_one_method(r);
     assert_eq!(made[0]["submission"]["file_name"], "noisy_lmo-test.csv");
     assert_eq!(submissions_count(&server), 7);
-    for s in made {
-        let done = wait_done(
-            &base,
-            s["id"].as_i64().expect("id"),
-            Duration::from_secs(120),
-        );
-        let dataset = s["submission"]["dataset"].as_str().expect("dataset");
-        for (protocol, key) in [("bop19", "bop19_average_recall"), ("eccv18", "recall")] {
-            assert_eq!(
-                done["scores"][protocol][key],
-                m.expected(dataset, protocol)[key],
-                "{dataset} {protocol}"
-            );
-        }
-    }
+    assert_scored_as_plain(
+        &base,
+        &m,
+        &made,
+        &[("bop19", "bop19_average_recall"), ("eccv18", "recall")],
+    );
 }
 both_databases!(zip_uploads);

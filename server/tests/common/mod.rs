@@ -400,43 +400,37 @@ pub fn database_url(db: &TestDb, data_dir: &Path) -> String {
         .unwrap_or_else(|| format!("sqlite://{}", data_dir.join("poseboard.db").display()))
 }
 
-/// Runs one statement on the server's database.
-pub fn execute(db: &TestDb, data_dir: &Path, sql: &str) {
+/// A connection to the server's database, with a runtime to drive it.
+fn connect(db: &TestDb, data_dir: &Path) -> (tokio::runtime::Runtime, sqlx::AnyConnection) {
+    use sqlx::Connection;
     let url = database_url(db, data_dir);
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .expect("runtime");
-    rt.block_on(async {
-        use sqlx::Connection;
-        sqlx::any::install_default_drivers();
-        let mut conn = sqlx::AnyConnection::connect(&url).await.expect("database");
-        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
-            .execute(&mut conn)
-            .await
-            .expect("statement runs");
-    });
+    sqlx::any::install_default_drivers();
+    let conn = rt
+        .block_on(sqlx::AnyConnection::connect(&url))
+        .expect("database");
+    (rt, conn)
+}
+
+/// Runs one statement on the server's database.
+pub fn execute(db: &TestDb, data_dir: &Path, sql: &str) {
+    let (rt, mut conn) = connect(db, data_dir);
+    rt.block_on(sqlx::query(sqlx::AssertSqlSafe(sql.to_string())).execute(&mut conn))
+        .expect("statement runs");
 }
 
 /// Reads one column of every row of a table of the server's database.
 pub fn column(db: &TestDb, data_dir: &Path, sql: &str) -> Vec<String> {
-    let url = database_url(db, data_dir);
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    rt.block_on(async {
-        use sqlx::{Connection, Row};
-        sqlx::any::install_default_drivers();
-        let mut conn = sqlx::AnyConnection::connect(&url).await.expect("database");
-        sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
-            .fetch_all(&mut conn)
-            .await
-            .expect("query")
-            .iter()
-            .map(|r| r.try_get::<String, _>(0).expect("text column"))
-            .collect()
-    })
+    use sqlx::Row;
+    let (rt, mut conn) = connect(db, data_dir);
+    rt.block_on(sqlx::query(sqlx::AssertSqlSafe(sql.to_string())).fetch_all(&mut conn))
+        .expect("query")
+        .iter()
+        .map(|r| r.try_get::<String, _>(0).expect("text column"))
+        .collect()
 }
 
 /// POSTs to `url` with `token`, and a JSON body if given.
