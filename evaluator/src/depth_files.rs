@@ -9,6 +9,7 @@ use std::io::BufReader;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use crate::depth_png::Png;
 use crate::error::{Error, Result};
 
 /// A depth image in millimetres; 0 means no measurement.
@@ -82,7 +83,7 @@ fn png_size(path: &Path) -> Result<(u32, u32)> {
 /// is corrupt, and is rejected before its buffer is allocated.
 const MAX_DEFLATE_RATIO: u64 = 1032;
 
-/// A depth PNG whose header has been read and checked.
+/// A depth PNG read into memory, its header checked.
 ///
 /// Inflating a whole 640x480 16-bit image costs about as much as rendering and scoring all the
 /// estimates of its target, while the objects of an image lie in a band of its rows: a deflate
@@ -91,9 +92,8 @@ const MAX_DEFLATE_RATIO: u64 = 1032;
 /// rows read is therefore not noticed, as it cannot change a score.
 pub struct DepthPng {
     path: PathBuf,
-    reader: png::Reader<BufReader<File>>,
+    png: Png,
     depth_scale: f32,
-    sixteen: bool,
 }
 
 /// Rows `y0..y0 + rows` of a depth image in mm (0 = no measurement).
@@ -109,32 +109,25 @@ pub struct DepthRows {
 
 impl DepthPng {
     fn open(path: PathBuf, depth_scale: f32) -> Result<DepthPng> {
-        let file_len = std::fs::metadata(&path)
-            .map_err(|e| Error::io(&path, e))?
-            .len();
-        let reader = png_decoder(&path)?
-            .read_info()
-            .map_err(|e| png_error(&path, e))?;
-        let (color, bits) = (reader.info().color_type, reader.info().bit_depth);
-        let sixteen = match (color, bits) {
-            (png::ColorType::Grayscale, png::BitDepth::Sixteen) => true,
-            (png::ColorType::Grayscale, png::BitDepth::Eight) => false,
-            _ => {
-                return Err(Error::format(
-                    &path,
-                    format!(
-                        "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
-                         {color:?} with bit depth {}",
-                        bits as u8
-                    ),
-                ));
-            }
-        };
-        let (width, height) = (reader.info().width, reader.info().height);
-        if reader
-            .output_buffer_size()
-            .is_none_or(|n| n as u64 > file_len.saturating_mul(MAX_DEFLATE_RATIO))
-        {
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        let file_len = bytes.len() as u64;
+        let png =
+            Png::parse(bytes).map_err(|e| Error::format(&path, format!("invalid PNG: {e}")))?;
+        let header = png.header;
+        if header.color_type != 0 || !matches!(header.bit_depth, 8 | 16) {
+            return Err(Error::format(
+                &path,
+                format!(
+                    "depth image must be 16-bit (or 8-bit) grayscale, found colour type \
+                     {} with bit depth {}",
+                    header.color_name(),
+                    header.bit_depth
+                ),
+            ));
+        }
+        let (width, height) = (header.width, header.height);
+        let pixels_bytes = (png.row_bytes() as u64 + 1) * u64::from(height);
+        if pixels_bytes > file_len.saturating_mul(MAX_DEFLATE_RATIO) {
             return Err(Error::format(
                 &path,
                 format!("{width}x{height} pixels cannot be held by a file of {file_len} bytes"),
@@ -142,26 +135,24 @@ impl DepthPng {
         }
         Ok(DepthPng {
             path,
-            reader,
+            png,
             depth_scale,
-            sixteen,
         })
     }
 
     /// (width, height) in pixels, as the header states.
     pub fn size(&self) -> (u32, u32) {
-        let info = self.reader.info();
-        (info.width, info.height)
+        (self.png.header.width, self.png.header.height)
     }
 
     /// Inflates the image up to the end of `rows` (clamped to the image) and returns those
     /// rows; nothing after them is read (except in interlaced files, where every pass covers
     /// the whole image).
-    pub fn read_rows(mut self, rows: Range<u32>) -> Result<DepthRows> {
+    pub fn read_rows(self, rows: Range<u32>) -> Result<DepthRows> {
         let (width, height) = self.size();
         let (y1, y0) = (rows.end.min(height), rows.start.min(rows.end).min(height));
         let mut data = Vec::with_capacity(width as usize * (y1 - y0) as usize);
-        let (scale, sixteen) = (self.depth_scale, self.sixteen);
+        let (scale, sixteen) = (self.depth_scale, self.png.header.bit_depth == 16);
         // Samples are big-endian and rows unpadded at 8 and 16 bits. Pairs of bytes mapped
         // straight into the buffer vectorise (an indexed loop did not).
         let mut push = |row: &[u8]| {
@@ -177,10 +168,13 @@ impl DepthPng {
             }
         };
         let path = &self.path;
-        if self.reader.info().interlaced {
-            let size = self.reader.output_buffer_size().unwrap_or(0);
+        if self.png.header.interlaced {
+            let mut decoder = png::Decoder::new(std::io::Cursor::new(self.png.into_bytes()));
+            decoder.set_transformations(png::Transformations::IDENTITY);
+            let mut reader = decoder.read_info().map_err(|e| png_error(path, e))?;
+            let size = reader.output_buffer_size().unwrap_or(0);
             let mut buf = vec![0u8; size];
-            self.reader
+            reader
                 .next_frame(&mut buf)
                 .map_err(|e| png_error(path, e))?;
             let line = size / height.max(1) as usize;
@@ -188,15 +182,13 @@ impl DepthPng {
                 push(&buf[y as usize * line..(y as usize + 1) * line]);
             }
         } else {
-            for y in 0..y1 {
-                let row = self
-                    .reader
-                    .next_row()
-                    .map_err(|e| png_error(path, e))?
-                    .ok_or_else(|| Error::format(path, format!("image data ends at row {y}")))?;
-                if y >= y0 {
-                    push(row.data());
-                }
+            let mut raw = Vec::new();
+            self.png
+                .inflate_rows(y1, &mut raw)
+                .map_err(|e| Error::format(path, format!("invalid PNG: {e}")))?;
+            let stride = self.png.row_bytes() + 1;
+            for row in raw.chunks_exact(stride).skip(y0 as usize) {
+                push(&row[1..]);
             }
         }
         Ok(DepthRows {

@@ -8,6 +8,7 @@
 
 pub mod dataset;
 pub mod depth_files;
+mod depth_png;
 pub mod error;
 pub mod matching;
 pub mod math;

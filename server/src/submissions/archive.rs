@@ -17,11 +17,11 @@
 //! The `zip` crate is used with `default-features = false` and only `deflate-flate2`: reading
 //! Deflate (what every archiver writes by default) and Stored, in pure Rust. Pitfalls: the
 //! default features pull in AES, bzip2, LZMA, zstd and zopfli, C code among them; the
-//! `deflate-flate2` feature names no flate2 backend, so it builds only because flate2's default
-//! pure-Rust backend (miniz_oxide) is enabled in this workspace by the evaluator's `tiff` (and
-//! tower-http's gzip) dependencies: without them flate2 stops with "You need to choose a zlib
-//! backend" (`deflate-flate2-zlib-rs` would bring its own, at the price of switching every
-//! flate2 user to zlib-rs); an entry compressed any other way (bzip2, LZMA, ...) or encrypted
+//! `deflate-flate2` feature names no flate2 backend: it gets the one the other flate2 users of
+//! the workspace choose (the evaluator's `zlib-rs`, with which it inflates depth PNGs, takes
+//! precedence over the default miniz_oxide that `tiff` and tower-http's gzip bring); without
+//! them flate2 stops with "You need to choose a zlib backend"; an entry compressed any other
+//! way (bzip2, LZMA, ...) or encrypted
 //! is refused with a 422 saying so; and the crate's streaming reader cannot read entries with
 //! data descriptors (which macOS Finder writes), so the archive is read through its central
 //! directory.
