@@ -417,13 +417,14 @@ mod tests {
     fn files_that_are_not_depth_pngs_are_refused_with_a_reason() {
         assert!(
             Png::parse(b"not a png".to_vec())
-                .unwrap_err()
+                .err()
+                .unwrap()
                 .contains("signature")
         );
         let bytes = encode(4, 4, png::BitDepth::Eight, png::Filter::NoFilter);
         let mut bad_header = bytes.clone();
         bad_header[20] ^= 1;
-        assert!(Png::parse(bad_header).unwrap_err().contains("CRC"));
+        assert!(Png::parse(bad_header).err().unwrap().contains("CRC"));
         let mut bad_filter = bytes.clone();
         // The first row's filter byte is the first inflated byte; rewrite it as filter 9.
         let png = Png::parse(bytes).unwrap();
