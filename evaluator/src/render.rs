@@ -497,39 +497,30 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
 
     // The depth plane is set up only once a sample is found inside: most triangles of a fine
     // mesh whose bounding box holds a pixel centre still cover none, and the set-up (with its
-    // division) cost more than their edge tests. The samples of a row inside the (convex)
-    // triangle are one run, so a row ends at the first sample after it.
+    // division) cost more than their edge tests.
     let mut plane: Option<DepthPlane> = None;
     let (mut r0, mut r1, mut r2) = (e0, e1, e2);
     for y in ty0..=ty1 {
-        let (mut f0, mut f1, mut f2) = (r0, r1, r2);
-        r0 += sy0;
-        r1 += sy1;
-        r2 += sy2;
-        let mut x = tx0;
-        while x <= tx1 && (f0 | f1 | f2) < 0 {
-            f0 += sx0;
-            f1 += sx1;
-            f2 += sx2;
-            x += 1;
-        }
-        if x > tx1 {
-            continue;
-        }
-        let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
         let row = (win.image_height - 1 - y - win.top) as usize * win.width;
-        let zy = p.dzdy * y as f32;
-        while x <= tx1 && (f0 | f1 | f2) >= 0 {
-            let z16 = p.depth16(x as f32, zy);
-            let slot = &mut zbuf[row + (x - win.x0) as usize];
-            if z16 < *slot {
-                *slot = z16;
+        let zy = y as f32;
+        let (mut f0, mut f1, mut f2) = (r0, r1, r2);
+        for x in tx0..=tx1 {
+            if (f0 | f1 | f2) >= 0 {
+                let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
+                if let Some(z16) = p.depth16(x as f32, zy) {
+                    let slot = &mut zbuf[row + (x - win.x0) as usize];
+                    if z16 < *slot {
+                        *slot = z16;
+                    }
+                }
             }
             f0 += sx0;
             f1 += sx1;
             f2 += sx2;
-            x += 1;
         }
+        r0 += sy0;
+        r1 += sy1;
+        r2 += sy2;
     }
 }
 
@@ -560,21 +551,19 @@ impl DepthPlane {
         }
     }
 
-    /// The 16-bit depth at window pixel (x, y), clamped to the depth range, given
-    /// `dzdy_y = dzdy · y`; [`DEPTH_MAX`] for NaN (a float32 set-up of zero area), which then
-    /// draws nothing, as `GL_LESS` never lets the cleared value in.
+    /// The 16-bit depth at window pixel (x, y), clamped to the depth range; `None` for NaN (a
+    /// float32 set-up of zero area), which draws nothing.
     #[inline]
-    fn depth16(&self, x: f32, dzdy_y: f32) -> u32 {
-        let z = (self.z0 + self.dzdx * x) + dzdy_y;
+    fn depth16(&self, x: f32, y: f32) -> Option<u32> {
+        let z = (self.z0 + self.dzdx * x) + self.dzdy * y;
         if !z.is_finite() {
-            return DEPTH_MAX;
+            return None;
         }
-        // `v · 2^16` is exact in float32 and below 2^16, so adding 1.5 · 2^23 rounds it to
-        // the nearest integer, ties to even, as the float64 path would; the sum lies in
-        // [2^23, 2^24), where a float's bits minus those of 1.5 · 2^23 are the integer.
+        // `v · 2^16` is exact in float32 and below 2^16, so adding and subtracting 1.5 · 2^23
+        // rounds it to the nearest integer, ties to even, as the float64 path would.
         const MAGIC: f32 = 12_582_912.0;
         let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0) * 65536.0;
-        (v + MAGIC).to_bits() - MAGIC.to_bits()
+        Some(((v + MAGIC) - MAGIC) as u32)
     }
 }
 
@@ -715,7 +704,7 @@ mod tests {
                 let plane = DepthPlane { z0: z, dzdx: 0.0, dzdy: 0.0 };
                 let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0);
                 let expected = round_even(f64::from(v) * 65536.0) as u32;
-                proptest::prop_assert_eq!(plane.depth16(0.0, 0.0), expected);
+                proptest::prop_assert_eq!(plane.depth16(0.0, 0.0), Some(expected));
             }
         }
     }
@@ -727,7 +716,7 @@ mod tests {
             dzdx: 0.0,
             dzdy: 0.0,
         };
-        assert_eq!(plane.depth16(3.0, 4.0), DEPTH_MAX);
+        assert_eq!(plane.depth16(3.0, 4.0), None);
     }
 
     #[test]
