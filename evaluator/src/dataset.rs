@@ -374,7 +374,7 @@ impl Dataset {
 
 /// The split folder: `{split}_{split_type}` when a type is chosen, otherwise the one folder
 /// among `{split}` and `{split}_*` (BOP ships some datasets with one sensor per split type).
-fn find_split(root: &Path, opts: &DatasetOptions) -> Result<(PathBuf, Option<String>)> {
+pub(crate) fn find_split(root: &Path, opts: &DatasetOptions) -> Result<(PathBuf, Option<String>)> {
     let split = &opts.split;
     if let Some(t) = &opts.split_type {
         let dir = root.join(format!("{split}_{t}"));
@@ -468,7 +468,7 @@ fn load_targets(path: &Path) -> Result<Vec<Target>> {
         .collect()
 }
 
-fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
+pub(crate) fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
     split_dir.join(format!("{scene_id:06}"))
 }
 
@@ -521,7 +521,7 @@ struct RawCameraSize {
     height: Option<u32>,
 }
 
-fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
+pub(crate) fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     serde_json::from_slice(&bytes).map_err(|e| Error::format(path, e.to_string()))
 }

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::coco::results::EntryProblems;
 use crate::results::problems::Problems;
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -21,6 +22,9 @@ pub enum Error {
     /// A result file with line-numbered problems.
     #[error("{0}")]
     Results(Problems),
+    /// A JSON (BOP'22 detection or segmentation) result file with entry-numbered problems.
+    #[error("{0}")]
+    CocoResults(EntryProblems),
     /// Protocol parameters that make no sense (e.g. an empty list of thresholds).
     #[error("invalid parameters: {0}")]
     Parameters(String),

@@ -1,11 +1,13 @@
 //! poseboard's evaluator: reads BOP datasets and BOP'19 result files, renders object models
 //! into depth maps on the CPU, computes the pose errors of the BOP benchmark (VSD, MSSD, MSPD,
 //! ADD, ADI, RE, TE), matches estimates to ground truth and computes the scores of the ECCV'18
-//! paper and of the BOP'19 challenge, agreeing with the official bop_toolkit.
+//! paper and of the BOP'19 challenge, agreeing with the official bop_toolkit; and scores the 2D
+//! detection and segmentation tasks of BOP'22 with COCO's metrics ([`coco`]).
 //!
 //! A pure library: no HTTP, no database, no global state. Parallelism runs on the caller's
 //! rayon pool, so a service can bound it.
 
+pub mod coco;
 pub mod dataset;
 pub mod depth_files;
 mod depth_png;

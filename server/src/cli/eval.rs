@@ -1,5 +1,10 @@
 //! `poseboard eval` and `poseboard check-results`: the evaluator on the command line, for a
 //! researcher with a dataset and a result file on disk.
+//!
+//! The 2D tasks of BOP'22 (`bop22-det`, `bop22-seg`) go to `evaluator::coco` through their own
+//! branch ([`EvalProtocol`]) rather than as `ProtocolName` variants: their files, parameters
+//! and report differ from the 6D protocols', and the server's boards, queue and pages match on
+//! `ProtocolName` throughout.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -7,6 +12,8 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use evaluator::coco::{self, BboxType, CocoGt, CocoReport, CocoTask};
+use evaluator::dataset::DatasetOptions;
 use evaluator::protocol::{ErrorKind, Overrides, ProtocolName};
 use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
@@ -24,11 +31,18 @@ pub struct EvalArgs {
     pub dataset: PathBuf,
     #[command(flatten)]
     pub split: SplitArgs,
-    /// A result file in the BOP'19 CSV format.
+    /// A result file: BOP'19 CSV for the 6D protocols, BOP'22 JSON (`METHOD_DATASET-test.json`)
+    /// for bop22-det and bop22-seg.
     #[arg(long)]
     pub results: PathBuf,
+    /// eccv18, bop19 (6D localization), bop22-det (2D detection, boxes) or bop22-seg (2D
+    /// segmentation, masks).
     #[arg(long, default_value = "bop19")]
-    pub protocol: ProtocolName,
+    pub protocol: EvalProtocol,
+    /// bop22-det: compare with the boxes around the full silhouette (amodal, the default) or
+    /// around the visible part (modal, `scene_gt_coco_modal.json`).
+    #[arg(long)]
+    pub bbox_type: Option<BboxType>,
     /// Write the full report (every score, the parameters used) as JSON to this file.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -113,17 +127,69 @@ impl OverrideArgs {
     }
 }
 
+/// A protocol name on the command line: a 6D protocol or a BOP'22 2D task.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EvalProtocol {
+    Pose(ProtocolName),
+    Detection,
+    Segmentation,
+}
+
+impl std::str::FromStr for EvalProtocol {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "bop22-det" => Ok(EvalProtocol::Detection),
+            "bop22-seg" => Ok(EvalProtocol::Segmentation),
+            other => other.parse().map(EvalProtocol::Pose).map_err(|_| {
+                format!("unknown protocol `{other}` (eccv18, bop19, bop22-det or bop22-seg)")
+            }),
+        }
+    }
+}
+
+/// A protocol resolved with its options.
+enum Resolved {
+    Pose(ProtocolName),
+    Coco(CocoTask),
+}
+
+impl EvalProtocol {
+    fn resolve(self, bbox_type: Option<BboxType>) -> Result<Resolved> {
+        match (self, bbox_type) {
+            (EvalProtocol::Detection, b) => Ok(Resolved::Coco(CocoTask::Detection(
+                b.unwrap_or(BboxType::Amodal),
+            ))),
+            (_, Some(_)) => bail!("--bbox-type is for --protocol bop22-det only"),
+            (EvalProtocol::Segmentation, None) => Ok(Resolved::Coco(CocoTask::Segmentation)),
+            (EvalProtocol::Pose(name), None) => Ok(Resolved::Pose(name)),
+        }
+    }
+}
+
 pub fn run_eval(args: EvalArgs) -> Result<()> {
-    let mut protocol = Protocol::named(args.protocol);
+    let name = match args.protocol.resolve(args.bbox_type)? {
+        Resolved::Pose(name) => name,
+        Resolved::Coco(task) => return run_coco_eval(&args, task),
+    };
+    if args
+        .results
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        bail!(
+            "{} is a BOP'22 JSON file: score it with --protocol bop22-det or bop22-seg ({} reads \
+             BOP'19 CSV files)",
+            args.results.display(),
+            name.as_str()
+        );
+    }
+    let mut protocol = Protocol::named(name);
     args.overrides.apply(&mut protocol)?;
     let dataset = load_dataset(&args.dataset, &args.results, &args.split)?;
     let results = load_results(&args.results)?;
 
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = args.threads {
-        pool = pool.num_threads(n);
-    }
-    let pool = pool.build().context("cannot start the worker threads")?;
+    let pool = worker_pool(args.threads)?;
     let bar = Bar::new();
     let evaluation = pool
         .install(|| evaluate(&dataset, &results, &protocol, &bar, &AtomicBool::new(false)))
@@ -144,10 +210,98 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// `eval` for the BOP'22 2D tasks: COCOeval on the dataset's `scene_gt_coco*.json`.
+fn run_coco_eval(args: &EvalArgs, task: CocoTask) -> Result<()> {
+    let o = &args.overrides;
+    if o.visib_mode.is_some()
+        || o.tau.is_some()
+        || o.tau_normalized.is_some()
+        || o.theta.is_some()
+        || o.delta.is_some()
+        || o.n_top.is_some()
+        || o.visib_gt_min.is_some()
+        || o.max_sym_disc_step.is_some()
+        || !o.extra_errors.is_empty()
+        || args.errors_out.is_some()
+    {
+        bail!(
+            "{} has no pose errors: the 6D options (--tau, --n-top, --errors-out, ...) do not apply",
+            task.name()
+        );
+    }
+    let dir = dataset_dir(&args.dataset, &args.results)?;
+    let gt = load_coco_gt(&dir, &args.split, task)?;
+    let results = load_coco_results(&args.results)?;
+    let pool = worker_pool(args.threads)?;
+    let report = pool
+        .install(|| coco::evaluate(&gt, &results, task))
+        .map_err(|e| match e {
+            evaluator::Error::CocoResults(problems) => anyhow::anyhow!(
+                "{} cannot be scored for {}:\n{problems}",
+                args.results.display(),
+                task.name()
+            ),
+            other => anyhow::Error::new(other).context("evaluation failed"),
+        })?;
+    print!("{}", coco_table(&report));
+    if let Some(out) = &args.out {
+        write_json(out, &report)?;
+    }
+    Ok(())
+}
+
+fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        pool = pool.num_threads(n);
+    }
+    pool.build().context("cannot start the worker threads")
+}
+
+/// The COCO numbers as the toolkit names them, for the terminal.
+pub fn coco_table(r: &CocoReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "dataset {}  protocol {} ({}, {} boxes)  entries {} (evaluated {}, ignored {})",
+        r.dataset,
+        r.protocol,
+        r.ann_type.as_str(),
+        r.bbox_type.as_str(),
+        r.entries_count,
+        r.entries_evaluated,
+        r.entries_ignored
+    );
+    let _ = writeln!(
+        s,
+        "target images {} ({} without an entry)",
+        r.target_images, r.target_images_without_entry
+    );
+    for (name, v) in r.stats() {
+        let _ = writeln!(s, "{name:>10}  {v:.4}");
+    }
+    if r.average_time_per_image >= 0.0 {
+        let _ = writeln!(
+            s,
+            "average time per image: {:.3} s",
+            r.average_time_per_image
+        );
+    }
+    s
+}
+
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// The result file to validate.
+    /// The result file to validate: BOP'19 CSV, or BOP'22 JSON (detection, segmentation).
     pub results: PathBuf,
+    /// Check that the file can be scored for this protocol (a JSON file: bop22-det needs a
+    /// box in every entry, bop22-seg a mask); a `.json` file is read as BOP'22 results.
+    #[arg(long)]
+    pub protocol: Option<EvalProtocol>,
+    /// With --dataset and bop22-det: the ground-truth boxes to report coverage against.
+    #[arg(long)]
+    pub bbox_type: Option<BboxType>,
     /// A dataset to report coverage against (targets without estimates, ignored estimates):
     /// a dataset folder or a folder of datasets, as for `eval`.
     #[arg(long)]
@@ -173,6 +327,26 @@ pub struct SplitArgs {
 }
 
 pub fn run_check(args: CheckArgs) -> Result<()> {
+    let resolved = args
+        .protocol
+        .map(|p| p.resolve(args.bbox_type))
+        .transpose()?;
+    let is_json = args
+        .results
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    match resolved {
+        Some(Resolved::Coco(task)) => return run_coco_check(&args, Some(task)),
+        None if is_json => return run_coco_check(&args, None),
+        Some(Resolved::Pose(_)) if is_json => bail!(
+            "{} is a JSON file: the 6D protocols read BOP'19 CSV result files",
+            args.results.display()
+        ),
+        _ if args.bbox_type.is_some() => {
+            bail!("--bbox-type is for --protocol bop22-det only")
+        }
+        _ => {}
+    }
     let results = load_results(&args.results)?;
     println!(
         "{}: {} estimates for {} images, OK",
@@ -206,40 +380,139 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
     Ok(())
 }
 
+/// `check-results` for a BOP'22 JSON file: every problem named by entry and key, the tasks the
+/// file can be scored for, and with a dataset, its coverage of the target images.
+fn run_coco_check(args: &CheckArgs, task: Option<CocoTask>) -> Result<()> {
+    let results = load_coco_results(&args.results)?;
+    let tasks: Vec<CocoTask> = match task {
+        Some(t) => vec![t],
+        None => vec![
+            CocoTask::Detection(BboxType::Amodal),
+            CocoTask::Segmentation,
+        ],
+    };
+    let mut usable = Vec::new();
+    for t in &tasks {
+        match results.require(*t) {
+            Ok(()) => usable.push(t.name()),
+            Err(problems) if task.is_some() => bail!(
+                "{} cannot be scored for {}:\n{problems}",
+                args.results.display(),
+                t.name()
+            ),
+            Err(_) => {}
+        }
+    }
+    if usable.is_empty() {
+        bail!(
+            "{}: no task can score this file: bop22-det needs a `bbox` in every entry, \
+             bop22-seg a `segmentation` in every entry",
+            args.results.display()
+        );
+    }
+    println!(
+        "{}: {} entries for {} images, OK for {}",
+        args.results.display(),
+        results.entries.len(),
+        results.image_count(),
+        usable.join(" and ")
+    );
+    if let Some(dir) = &args.dataset {
+        let dir = dataset_dir(dir, &args.results)?;
+        let task = task.unwrap_or(CocoTask::Detection(BboxType::Amodal));
+        let gt = CocoGt::load(
+            &dir,
+            &dataset_options(&dir, &args.split)?,
+            task.bbox_type(),
+            false,
+        )
+        .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))?;
+        let mut covered = std::collections::BTreeSet::new();
+        let mut not_target = 0;
+        for e in &results.entries {
+            match gt.image_index(e.scene_id, e.image_id) {
+                Some(i) => {
+                    covered.insert(i);
+                }
+                None => not_target += 1,
+            }
+        }
+        println!(
+            "{}: {} target images, {} without an entry; {} entries are not for a target image \
+             and would be ignored",
+            gt.name,
+            gt.images.len(),
+            gt.images.len() - covered.len(),
+            not_target
+        );
+    }
+    Ok(())
+}
+
 /// The dataset in `dir`, or, when `dir` is a folder of datasets, the one the result file's
-/// name (`METHOD_DATASET-SPLIT.csv`) names.
-fn load_dataset(dir: &Path, results: &Path, split: &SplitArgs) -> Result<Dataset> {
+/// name (`METHOD_DATASET-SPLIT.csv` or `.json`) names.
+fn dataset_dir(dir: &Path, results: &Path) -> Result<PathBuf> {
     let is_dataset = ["models", "models_eval"]
         .iter()
         .any(|m| dir.join(m).is_dir());
-    let dir = if is_dataset {
-        dir.to_path_buf()
-    } else {
-        let file_name = results.file_name().unwrap_or_default().to_string_lossy();
-        match results::parse_result_filename(&file_name) {
-            Some(name) if dir.join(&name.dataset).is_dir() => dir.join(&name.dataset),
-            Some(name) => bail!(
-                "{} is not a dataset folder (no models/), and has no folder `{}`, the dataset \
-                 {file_name} is named for",
-                dir.display(),
-                name.dataset
-            ),
-            None => bail!(
-                "{} is not a dataset folder (no models/), and {file_name} is not named \
-                 METHOD_DATASET-SPLIT.csv to find the dataset in it",
-                dir.display()
-            ),
-        }
-    };
-    let choice = SplitChoice {
+    if is_dataset {
+        return Ok(dir.to_path_buf());
+    }
+    let file_name = results.file_name().unwrap_or_default().to_string_lossy();
+    match results::parse_result_filename(&file_name) {
+        Some(name) if dir.join(&name.dataset).is_dir() => Ok(dir.join(&name.dataset)),
+        Some(name) => bail!(
+            "{} is not a dataset folder (no models/), and has no folder `{}`, the dataset \
+             {file_name} is named for",
+            dir.display(),
+            name.dataset
+        ),
+        None => bail!(
+            "{} is not a dataset folder (no models/), and {file_name} is not named \
+             METHOD_DATASET-SPLIT.csv to find the dataset in it",
+            dir.display()
+        ),
+    }
+}
+
+/// The split and targets file: the flags over the folder's `poseboard-dataset.json` and the
+/// defaults.
+fn dataset_options(dir: &Path, split: &SplitArgs) -> Result<DatasetOptions> {
+    Ok(SplitChoice {
         split: split.split.clone(),
         split_type: split.split_type.clone(),
         targets_file: split.targets_file.clone(),
     }
-    .or(folder_choice(&dir).map_err(anyhow::Error::msg)?);
+    .or(folder_choice(dir).map_err(anyhow::Error::msg)?)
+    .options())
+}
+
+fn load_dataset(dir: &Path, results: &Path, split: &SplitArgs) -> Result<Dataset> {
+    let dir = dataset_dir(dir, results)?;
+    let options = dataset_options(&dir, split)?;
     // The evaluator's error names the file and what was expected; said once.
-    Dataset::load_with(&dir, &choice.options())
+    Dataset::load_with(&dir, &options)
         .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))
+}
+
+fn load_coco_gt(dir: &Path, split: &SplitArgs, task: CocoTask) -> Result<CocoGt> {
+    let options = dataset_options(dir, split)?;
+    CocoGt::load(
+        dir,
+        &options,
+        task.bbox_type(),
+        task == CocoTask::Segmentation,
+    )
+    .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))
+}
+
+fn load_coco_results(path: &Path) -> Result<coco::CocoResults> {
+    coco::load_coco_results(path).map_err(|e| match e {
+        evaluator::Error::CocoResults(problems) => {
+            anyhow::anyhow!("{} is not a valid result file:\n{problems}", path.display())
+        }
+        other => anyhow::Error::new(other),
+    })
 }
 
 fn load_results(path: &Path) -> Result<evaluator::Results> {
