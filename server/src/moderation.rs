@@ -83,3 +83,17 @@ pub async fn retire_dataset(app: &App, actor: &User, name: &str) -> AppResult<()
         .await?;
     Ok(())
 }
+
+/// Makes a served dataset core (a column of the main leaderboards, in their average) or not.
+pub async fn set_core(app: &App, actor: &User, name: &str, core: bool) -> AppResult<()> {
+    if !app.store.set_dataset_core(name, core).await? {
+        return Err(AppError::NotFound);
+    }
+    let action = if core {
+        AdminAction::CoreDataset
+    } else {
+        AdminAction::NotCoreDataset
+    };
+    app.store.audit(actor.id, action, name).await?;
+    Ok(())
+}
