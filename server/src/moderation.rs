@@ -38,7 +38,10 @@ pub async fn submission_action(
             }
             None => false,
         },
-        AdminAction::AddDataset | AdminAction::RetireDataset => return Err(AppError::NotFound),
+        AdminAction::AddDataset
+        | AdminAction::RetireDataset
+        | AdminAction::CoreDataset
+        | AdminAction::NotCoreDataset => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(
