@@ -82,6 +82,18 @@ impl App {
         });
         if role == Role::Server {
             app.register_datasets().await?;
+            if !app.config.core_datasets.is_empty() {
+                let unknown = app
+                    .store
+                    .set_core_datasets(&app.config.core_datasets)
+                    .await?;
+                if !unknown.is_empty() {
+                    anyhow::bail!(
+                        "--core-datasets names {}, not served here",
+                        unknown.join(", ")
+                    );
+                }
+            }
             let imported =
                 uploaded_file::import_legacy(&app.store, &app.config.submissions_dir()).await?;
             if imported > 0 {
@@ -209,5 +221,6 @@ pub fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
         added_at: 0,
         retired: false,
         content_hash: None,
+        core: None,
     }
 }

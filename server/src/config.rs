@@ -49,6 +49,13 @@ pub struct Config {
     /// processes (its own are seen at once), in milliseconds.
     #[arg(long, env = "POSEBOARD_BOARD_RECHECK_MS", default_value_t = 250)]
     pub board_recheck_ms: u64,
+    /// The core datasets (comma-separated names): the columns of the main leaderboards and
+    /// what their average is over. Given at start, it sets every dataset's flag (the
+    /// administrator's toggle on the datasets page can change them later, until the next start
+    /// with this option). Default: the flags set before, and for a dataset never set, every
+    /// dataset but the demo one once another is served.
+    #[arg(long, env = "POSEBOARD_CORE_DATASETS", value_delimiter = ',')]
+    pub core_datasets: Vec<String>,
     /// Do not generate the demo dataset and submissions.
     #[arg(long, env = "POSEBOARD_NO_DEMO")]
     pub no_demo: bool,

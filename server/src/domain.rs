@@ -107,6 +107,12 @@ text_newtype!(
     #[derive(Default)]
     Description
 );
+text_newtype!(
+    /// A short free-text answer about a method (its authors, its refinement, the detections
+    /// it uses): at most 1,000 characters, possibly empty.
+    #[derive(Default)]
+    Note
+);
 
 impl MethodName {
     pub fn parse(value: &str) -> Result<Self, FieldError> {
@@ -172,6 +178,27 @@ impl Description {
             ));
         }
         Ok(Description(value))
+    }
+}
+
+impl Note {
+    pub fn parse(field: &'static str, value: &str) -> Result<Self, FieldError> {
+        if value.trim().is_empty() {
+            return Ok(Note(String::new()));
+        }
+        plain_text(field, value, 1000).map(Note)
+    }
+}
+
+/// The year a method was published: empty, or a year from 1900 to 2100.
+pub fn year(value: &str) -> Result<Option<i64>, FieldError> {
+    let value = value.trim();
+    if value.is_empty() {
+        return Ok(None);
+    }
+    match value.parse::<i64>() {
+        Ok(y) if (1900..=2100).contains(&y) => Ok(Some(y)),
+        _ => Err(FieldError::new("year", "must be a year from 1900 to 2100")),
     }
 }
 
@@ -255,6 +282,87 @@ word_enum!(
     Modality, "modality" { Rgb = "rgb", Depth = "depth", RgbD = "rgb-d" }
 );
 
+word_enum!(
+    /// Whether a method uses one model for all objects or one per object, as the BOP site asks.
+    ModelScope, "model_scope" { All = "all", PerObject = "per-object" }
+);
+
+/// A method's details as its owner states them on the method page or through the API. Each
+/// field is the text sent; a field left out (`None`) keeps its stored value, an empty one
+/// clears it.
+#[derive(Clone, Debug, Default, Deserialize)]
+pub struct MethodForm {
+    pub description: Option<String>,
+    pub authors: Option<String>,
+    #[serde(default, deserialize_with = "text_or_number")]
+    pub year: Option<String>,
+    pub paper_url: Option<String>,
+    pub code_url: Option<String>,
+    pub training_data: Option<String>,
+    pub detection_modality: Option<String>,
+    pub modality: Option<String>,
+    pub refinement: Option<String>,
+    pub detections: Option<String>,
+    pub model_scope: Option<String>,
+    pub hardware: Option<String>,
+}
+
+/// A year sent as a JSON number or as text (forms send text).
+fn text_or_number<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Year {
+        Text(String),
+        Number(i64),
+    }
+    Ok(Option::<Year>::deserialize(d)?.map(|y| match y {
+        Year::Text(t) => t,
+        Year::Number(n) => n.to_string(),
+    }))
+}
+
+/// A method's details, every field checked.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MethodDetails {
+    pub description: Description,
+    pub authors: Note,
+    pub year: Option<i64>,
+    pub paper_url: Link,
+    pub code_url: Link,
+    pub training_data: Option<TrainingData>,
+    /// The input of the detection stage.
+    pub detection_modality: Option<Modality>,
+    /// The input of the pose stage.
+    pub modality: Option<Modality>,
+    pub refinement: Note,
+    pub detections: Note,
+    pub model_scope: Option<ModelScope>,
+    pub hardware: Hardware,
+}
+
+impl MethodForm {
+    /// Checks every field sent; those left out are taken from `stored` (the method's
+    /// current details, as text).
+    pub fn parse(self, stored: MethodForm) -> Result<MethodDetails, FieldError> {
+        let text = |sent: Option<String>, kept: Option<String>| sent.or(kept).unwrap_or_default();
+        Ok(MethodDetails {
+            description: Description::parse(&text(self.description, stored.description))?,
+            authors: Note::parse("authors", &text(self.authors, stored.authors))?,
+            year: year(&text(self.year, stored.year))?,
+            paper_url: Link::parse("paper_url", &text(self.paper_url, stored.paper_url))?,
+            code_url: Link::parse("code_url", &text(self.code_url, stored.code_url))?,
+            training_data: optional(&text(self.training_data, stored.training_data))?,
+            detection_modality: optional(&text(self.detection_modality, stored.detection_modality))
+                .map_err(|e: FieldError| FieldError::new("detection_modality", e.problem))?,
+            modality: optional(&text(self.modality, stored.modality))?,
+            refinement: Note::parse("refinement", &text(self.refinement, stored.refinement))?,
+            detections: Note::parse("detections", &text(self.detections, stored.detections))?,
+            model_scope: optional(&text(self.model_scope, stored.model_scope))?,
+            hardware: Hardware::parse(&text(self.hardware, stored.hardware))?,
+        })
+    }
+}
+
 /// An optional enumerated field: empty means not given.
 pub fn optional<T: FromStr<Err = FieldError>>(value: &str) -> Result<Option<T>, FieldError> {
     let value = value.trim().to_lowercase();
@@ -322,6 +430,65 @@ mod tests {
             e.to_string(),
             "field `training_data` must be one of synthetic, real, both"
         );
+    }
+
+    #[test]
+    fn method_details_keep_what_is_not_sent() {
+        let stored = MethodForm {
+            authors: Some("A. Author".into()),
+            year: Some("2020".into()),
+            hardware: Some("a GPU".into()),
+            ..MethodForm::default()
+        };
+        let sent = MethodForm {
+            year: Some("".into()),
+            model_scope: Some("per-object".into()),
+            ..MethodForm::default()
+        };
+        let details = sent.parse(stored.clone()).unwrap();
+        assert_eq!(details.authors.as_str(), "A. Author");
+        assert_eq!(details.year, None);
+        assert_eq!(details.model_scope, Some(ModelScope::PerObject));
+        assert_eq!(details.hardware.as_str(), "a GPU");
+        for (bad, field) in [
+            (
+                MethodForm {
+                    year: Some("20x0".into()),
+                    ..MethodForm::default()
+                },
+                "year",
+            ),
+            (
+                MethodForm {
+                    year: Some("1492".into()),
+                    ..MethodForm::default()
+                },
+                "year",
+            ),
+            (
+                MethodForm {
+                    model_scope: Some("some".into()),
+                    ..MethodForm::default()
+                },
+                "model_scope",
+            ),
+            (
+                MethodForm {
+                    detection_modality: Some("lidar".into()),
+                    ..MethodForm::default()
+                },
+                "detection_modality",
+            ),
+            (
+                MethodForm {
+                    refinement: Some("x".repeat(1001)),
+                    ..MethodForm::default()
+                },
+                "refinement",
+            ),
+        ] {
+            assert_eq!(bad.parse(stored.clone()).unwrap_err().field, field);
+        }
     }
 
     #[test]

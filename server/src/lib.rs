@@ -18,6 +18,7 @@ pub mod domain;
 pub mod error;
 pub mod jobs;
 pub mod logging;
+pub mod methods;
 pub mod metrics;
 pub mod moderation;
 pub mod openapi;

@@ -38,7 +38,10 @@ pub async fn submission_action(
             }
             None => false,
         },
-        AdminAction::AddDataset | AdminAction::RetireDataset => return Err(AppError::NotFound),
+        AdminAction::AddDataset
+        | AdminAction::RetireDataset
+        | AdminAction::CoreDataset
+        | AdminAction::NotCoreDataset => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(
@@ -81,5 +84,19 @@ pub async fn retire_dataset(app: &App, actor: &User, name: &str) -> AppResult<()
     app.store
         .audit(actor.id, AdminAction::RetireDataset, name)
         .await?;
+    Ok(())
+}
+
+/// Makes a served dataset core (a column of the main leaderboards, in their average) or not.
+pub async fn set_core(app: &App, actor: &User, name: &str, core: bool) -> AppResult<()> {
+    if !app.store.set_dataset_core(name, core).await? {
+        return Err(AppError::NotFound);
+    }
+    let action = if core {
+        AdminAction::CoreDataset
+    } else {
+        AdminAction::NotCoreDataset
+    };
+    app.store.audit(actor.id, action, name).await?;
     Ok(())
 }

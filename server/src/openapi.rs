@@ -16,8 +16,41 @@ pub fn document() -> Value {
         "paths": {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
-            "/api/v1/methods/{id}": { "get": { "summary": "A method and its public submissions", "parameters": [id_param],
-                "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } } },
+            "/api/v1/methods/{id}": {
+                "get": { "summary": "A method (with its owner's account name) and its public submissions", "parameters": [id_param],
+                    "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } },
+                "post": { "summary": "Change a method's details (its owner or an administrator); fields left out keep their values, an empty one clears it",
+                    "security": [{ "bearer": [] }], "parameters": [id_param],
+                    "requestBody": { "required": true, "content": { "application/json": { "schema": {
+                        "type": "object",
+                        "properties": {
+                            "description": { "type": "string", "maxLength": 10000 },
+                            "authors": { "type": "string", "maxLength": 1000 },
+                            "year": { "type": ["integer", "string"], "description": "1900 to 2100, or empty" },
+                            "paper_url": { "type": "string", "description": "an http(s) link" },
+                            "code_url": { "type": "string", "description": "an http(s) link" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both", ""] },
+                            "detection_modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the detection stage" },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the pose stage" },
+                            "refinement": { "type": "string", "maxLength": 1000 },
+                            "detections": { "type": "string", "maxLength": 1000, "description": "the detections the method starts from" },
+                            "model_scope": { "type": "string", "enum": ["all", "per-object", ""], "description": "one model for all objects or one per object" },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" }
+                        } } } } },
+                    "responses": { "200": { "description": "{method}: as stored" }, "400": { "description": "a field that does not parse" }, "401": { "description": "no valid API token" },
+                        "403": { "description": "the method is another account's" }, "404": { "description": "no such method, or another account's private one" } } }
+            },
+            "/api/v1/submissions/{id}/pin": { "post": { "summary": "Make this submission its method's entry on its dataset (for every protocol it is scored under) instead of the best one; its owner or an administrator",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "{ok, submission, pinned: true}" }, "401": { "description": "no valid API token" }, "403": { "description": "another account's submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/submissions/{id}/unpin": { "post": { "summary": "Remove this submission's pin: the method's best public finished submission on the dataset is its entry again",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "{ok, submission, pinned: false}" }, "401": { "description": "no valid API token" }, "403": { "description": "another account's submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/admin/datasets/{name}/core": { "post": { "summary": "Make a dataset core (a column of the main leaderboards, counted in their average) or not; administrators only",
+                "security": [{ "bearer": [] }],
+                "parameters": [{ "name": "name", "in": "path", "required": true, "schema": { "type": "string" } }],
+                "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["core"], "properties": { "core": { "type": "boolean" } } } } } },
+                "responses": { "200": { "description": "{ok, dataset, core}" }, "404": { "description": "no such served dataset, or not an administrator" } } } },
             "/api/v1/submissions": {
                 "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
                 "post": {
@@ -61,7 +94,7 @@ pub fn document() -> Value {
                     { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
                     { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
                 ],
-                "responses": { "200": { "description": "{protocol, parameters, datasets, rows}" }, "404": { "description": "unknown protocol or dataset" } } } },
+                "responses": { "200": { "description": "{protocol, parameters, datasets, core, columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, scores per dataset ({submission_id, score, ..., pinned}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "404": { "description": "unknown protocol or dataset" } } } },
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
         }
     })

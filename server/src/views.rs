@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::app::App;
 use crate::auth::Viewer;
 use crate::chart::Chart;
+use crate::demo::DEMO_DATASET;
 use crate::domain::{Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
@@ -27,22 +28,33 @@ pub struct Cell {
     pub ar_mssd: Option<f64>,
     pub ar_mspd: Option<f64>,
     pub time: Option<f64>,
+    /// The method's owner pinned this submission as its entry (otherwise it is the best).
+    pub pinned: bool,
 }
 
 #[derive(Clone, Debug, Serialize)]
 pub struct BoardRow {
-    pub rank: usize,
+    /// Rank by the average (by the score with one dataset); `None` for a row without a score on
+    /// every dataset shown. Rows whose scores read the same at the precision shown share it.
+    pub rank: Option<usize>,
     pub method_id: i64,
     pub method: String,
+    /// The account the method belongs to.
+    pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
-    /// The hardware of the method's latest submission shown.
+    /// The method's hardware, which its times were measured on.
     pub hardware: String,
-    /// Per dataset name, the method's score there.
+    /// Per dataset shown, the score of the method's entry there.
     pub scores: BTreeMap<String, Cell>,
-    /// Mean of the per-dataset scores; only when the method has a score on every dataset.
+    /// How many of the datasets shown the method has a score on.
+    pub covered: usize,
+    /// Mean of the scores over the datasets shown; only when the method has a score on each.
     pub average: Option<f64>,
-    /// Mean of the reported times over the datasets that have one.
+    /// Mean of the scores over the datasets covered (what orders unranked rows).
+    pub mean: Option<f64>,
+    /// Mean of the times over the datasets covered (per image for bop19, per target for
+    /// eccv18); only when each of them has a time.
     pub time: Option<f64>,
     /// With one dataset selected: the per-object scores (recall or AR).
     pub objects: BTreeMap<i64, f64>,
@@ -54,11 +66,18 @@ pub struct Leaderboard {
     pub score_name: &'static str,
     pub time_unit: &'static str,
     pub parameters: Parameters,
+    /// Every dataset served (each has its own board).
     pub datasets: Vec<DatasetRow>,
+    /// The names of the core datasets: the columns of the main table.
+    pub core: Vec<String>,
+    /// The datasets shown as columns: the core ones, or the one selected.
+    pub columns: Vec<DatasetRow>,
     /// With `?dataset=NAME`, that dataset (and the rows carry per-object scores).
     pub dataset: Option<DatasetRow>,
     pub object_ids: Vec<i64>,
     pub filter: BoardFilter,
+    /// What the rows are ordered by: `average`, `time`, `method` or a dataset name.
+    pub sorted_by: String,
     pub rows: Vec<BoardRow>,
 }
 
@@ -108,7 +127,8 @@ impl BoardFilter {
 /// How a leaderboard's rows are ordered.
 #[derive(Clone, Debug, PartialEq)]
 enum Sort {
-    /// By the average over the datasets shown (or the one dataset's score), best first.
+    /// By rank: the average over the datasets shown (or the one dataset's score), best first,
+    /// then the unranked rows.
     Average,
     /// By the reported time, fastest first.
     Time,
@@ -170,6 +190,22 @@ pub fn score_name(p: ProtocolName) -> &'static str {
     }
 }
 
+/// The core datasets: those flagged core, and of those never flagged, every one but the demo
+/// dataset once another is served (the demo is there to try the service, not to rank methods).
+pub fn core_datasets(datasets: &[DatasetRow]) -> Vec<DatasetRow> {
+    let others = datasets.iter().any(|d| d.name != DEMO_DATASET);
+    datasets
+        .iter()
+        .filter(|d| d.core.unwrap_or(!(others && d.name == DEMO_DATASET)))
+        .cloned()
+        .collect()
+}
+
+/// A score as the page shows it: two scores that read the same share a rank.
+fn shown(score: f64) -> String {
+    format!("{:.1}", score * 100.0)
+}
+
 /// Builds a leaderboard.
 pub async fn leaderboard(
     app: &App,
@@ -193,22 +229,29 @@ pub async fn leaderboard(
         .store
         .leaderboard(protocol, selected.as_ref().map(|d| d.id))
         .await?;
-    let shown: Vec<&DatasetRow> = match &selected {
-        Some(d) => vec![d],
-        None => datasets.iter().collect(),
+    let core = core_datasets(&datasets);
+    let columns: Vec<DatasetRow> = match &selected {
+        Some(d) => vec![d.clone()],
+        None => core.clone(),
     };
     let mut by_method: BTreeMap<i64, BoardRow> = BTreeMap::new();
     let mut object_ids = std::collections::BTreeSet::new();
-    for e in entries.iter().filter(|e| query.matches(e)) {
+    let entries = entries
+        .iter()
+        .filter(|e| query.matches(e) && columns.iter().any(|d| d.id == e.dataset_id));
+    for e in entries {
         let row = by_method.entry(e.method_id).or_insert_with(|| BoardRow {
-            rank: 0,
+            rank: None,
             method_id: e.method_id,
             method: e.method.clone(),
+            owner: e.owner.clone(),
             training_data: e.training_data,
             modality: e.modality,
             hardware: e.hardware.clone(),
             scores: BTreeMap::new(),
+            covered: 0,
             average: None,
+            mean: None,
             time: None,
             objects: BTreeMap::new(),
         });
@@ -220,36 +263,61 @@ pub async fn leaderboard(
     }
     let mut rows: Vec<BoardRow> = by_method.into_values().collect();
     for row in &mut rows {
-        let scores: Vec<f64> = shown
+        let cells: Vec<&Cell> = columns
             .iter()
-            .filter_map(|d| row.scores.get(&d.name).map(|c| c.score))
+            .filter_map(|d| row.scores.get(&d.name))
             .collect();
-        if !scores.is_empty() && scores.len() == shown.len() {
-            row.average = Some(scores.iter().sum::<f64>() / scores.len() as f64);
+        row.covered = cells.len();
+        let n = cells.len() as f64;
+        if !cells.is_empty() {
+            row.mean = Some(cells.iter().map(|c| c.score).sum::<f64>() / n);
+            let times: Option<Vec<f64>> =
+                cells.iter().map(|c| c.time.filter(|t| *t >= 0.0)).collect();
+            row.time = times.map(|t| t.iter().sum::<f64>() / n);
         }
-        let times: Vec<f64> = row.scores.values().filter_map(|c| c.time).collect();
-        if !times.is_empty() {
-            row.time = Some(times.iter().sum::<f64>() / times.len() as f64);
+        if row.covered == columns.len() {
+            row.average = row.mean;
         }
     }
-    let key = |r: &BoardRow| -> f64 {
-        match &query.sort {
-            Sort::Average | Sort::Method => r.average.unwrap_or(-1.0),
-            Sort::Time => -r.time.unwrap_or(f64::INFINITY),
-            Sort::Dataset(name) => r.scores.get(name).map_or(-1.0, |c| c.score),
-        }
-    };
-    if query.sort == Sort::Method {
-        rows.sort_by_key(|r| r.method.to_lowercase());
-    } else {
-        rows.sort_by(|a, b| {
-            key(b)
-                .total_cmp(&key(a))
-                .then_with(|| a.method.cmp(&b.method))
-        });
-    }
+    // Ranked rows by their average, then the others by coverage and mean; ties by age.
+    rows.sort_by(|a, b| {
+        b.average
+            .is_some()
+            .cmp(&a.average.is_some())
+            .then_with(|| {
+                b.average
+                    .unwrap_or(0.0)
+                    .total_cmp(&a.average.unwrap_or(0.0))
+            })
+            .then_with(|| b.covered.cmp(&a.covered))
+            .then_with(|| b.mean.unwrap_or(0.0).total_cmp(&a.mean.unwrap_or(0.0)))
+            .then_with(|| a.method_id.cmp(&b.method_id))
+    });
+    let mut previous: Option<(String, usize)> = None;
     for (i, row) in rows.iter_mut().enumerate() {
-        row.rank = i + 1;
+        let Some(average) = row.average else { break };
+        let key = shown(average);
+        let rank = match &previous {
+            Some((k, r)) if *k == key => *r,
+            _ => i + 1,
+        };
+        row.rank = Some(rank);
+        previous = Some((key, rank));
+    }
+    // Another order keeps each row's rank: `#` is always the score's.
+    let last = |v: Option<f64>| v.map_or((1, 0.0), |v| (0, v));
+    match &query.sort {
+        Sort::Average => {}
+        Sort::Time => rows.sort_by(|a, b| {
+            let (x, y) = (last(a.time), last(b.time));
+            x.0.cmp(&y.0).then_with(|| x.1.total_cmp(&y.1))
+        }),
+        Sort::Method => rows.sort_by_key(|r| r.method.to_lowercase()),
+        Sort::Dataset(name) => rows.sort_by(|a, b| {
+            let score = |r: &BoardRow| last(r.scores.get(name).map(|c| c.score));
+            let (x, y) = (score(a), score(b));
+            x.0.cmp(&y.0).then_with(|| y.1.total_cmp(&x.1))
+        }),
     }
     Ok(Leaderboard {
         protocol,
@@ -259,10 +327,18 @@ pub async fn leaderboard(
             ProtocolName::Bop19 => "s per image",
         },
         parameters: parameters(&Protocol::named(protocol)),
+        core: core.into_iter().map(|d| d.name).collect(),
+        columns,
         datasets,
         dataset: selected,
         object_ids: object_ids.into_iter().collect(),
         filter: filter.clone(),
+        sorted_by: match &query.sort {
+            Sort::Average => "average".to_string(),
+            Sort::Time => "time".to_string(),
+            Sort::Method => "method".to_string(),
+            Sort::Dataset(name) => name.clone(),
+        },
         rows,
     })
 }
@@ -276,6 +352,7 @@ fn cell(e: &BoardEntry) -> Cell {
         ar_mssd: e.score.ar_mssd,
         ar_mspd: e.score.ar_mspd,
         time: e.score.time_avg,
+        pinned: e.pinned,
     }
 }
 
@@ -288,8 +365,24 @@ pub struct SubmissionView {
     pub preflight: Preflight,
     /// Per protocol, the full report (the same keys as `poseboard eval --out`).
     pub scores: BTreeMap<ProtocolName, Report>,
+    /// Per protocol with a public entry: the method's entry on this dataset, and whether it is
+    /// this submission.
+    pub entries: Vec<EntryStatus>,
+    /// Its owner pinned it as the method's entry on this dataset.
+    pub pinned: bool,
     #[serde(skip)]
     pub charts: Vec<Chart>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct EntryStatus {
+    pub protocol: ProtocolName,
+    /// The submission that is the method's entry on the dataset under this protocol.
+    pub submission_id: i64,
+    /// It is this submission.
+    pub is_this: bool,
+    /// Why it is the entry: `pinned` by the owner, or `best` public finished submission.
+    pub reason: &'static str,
 }
 
 /// A submission as `viewer` may see it: a private one answers as missing to everyone but its
@@ -305,11 +398,74 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
     };
     let reports = app.store.reports_of_submission(id).await?;
     let charts = reports.iter().flat_map(crate::chart::charts).collect();
+    let entries = app
+        .store
+        .entries(submission.method_id, submission.dataset_id)
+        .await?
+        .into_iter()
+        .map(|e| EntryStatus {
+            protocol: e.protocol,
+            submission_id: e.submission_id,
+            is_this: e.submission_id == id,
+            reason: if e.pinned { "pinned" } else { "best" },
+        })
+        .collect();
     Ok(SubmissionView {
+        entries,
+        pinned: app.store.is_pinned(id).await?,
         preflight: submission.preflight.clone(),
         submission,
         queue_position,
         scores: reports.into_iter().map(|r| (r.protocol, r)).collect(),
         charts,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dataset(name: &str, core: Option<bool>) -> DatasetRow {
+        DatasetRow {
+            id: 0,
+            name: name.to_string(),
+            path: String::new(),
+            objects_count: 0,
+            scenes_count: 0,
+            images_count: 0,
+            targets_count: 0,
+            instances_count: 0,
+            image_width: 0,
+            image_height: 0,
+            added_at: 0,
+            retired: false,
+            content_hash: None,
+            core,
+        }
+    }
+
+    fn names(datasets: &[DatasetRow]) -> Vec<String> {
+        core_datasets(datasets)
+            .into_iter()
+            .map(|d| d.name)
+            .collect()
+    }
+
+    #[test]
+    fn the_demo_is_core_only_alone_unless_set() {
+        assert_eq!(names(&[dataset(DEMO_DATASET, None)]), [DEMO_DATASET]);
+        let both = [dataset("lmo", None), dataset(DEMO_DATASET, None)];
+        assert_eq!(names(&both), ["lmo"]);
+        let set = [
+            dataset("lmo", Some(false)),
+            dataset(DEMO_DATASET, Some(true)),
+        ];
+        assert_eq!(names(&set), [DEMO_DATASET]);
+    }
+
+    #[test]
+    fn ties_are_judged_at_the_precision_shown() {
+        assert_eq!(shown(0.12341), shown(0.12349));
+        assert_ne!(shown(0.1234), shown(0.1236));
+    }
 }

@@ -10,7 +10,9 @@ use std::sync::atomic::AtomicBool;
 use common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, Report, evaluate, results::load_results};
-use server::domain::{Hardware, MethodName, Modality, TokenLabel, UserName, Visibility};
+use server::domain::{
+    Hardware, MethodDetails, MethodName, Modality, TokenLabel, UserName, Visibility,
+};
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
 use server::store::audit::AdminAction;
@@ -62,6 +64,7 @@ fn dataset_row(name: &str) -> DatasetRow {
         added_at: 0,
         retired: false,
         content_hash: Some("c0ffee".to_string()),
+        core: None,
     }
 }
 
@@ -652,6 +655,40 @@ fn board_version_follows_board_changes(kind: Db) {
             true,
             "shown",
             store.set_hidden(id, false).await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "pinned",
+            store.set_pinned(id, true).await.unwrap()
+        ));
+        assert!(step!(
+            true,
+            "unpinned",
+            store.set_pinned(id, false).await.unwrap()
+        ));
+        assert!(step!(
+            false,
+            "nothing to unpin",
+            !store.set_pinned(id, false).await.unwrap()
+        ));
+        let method_id = store.submission(id).await.unwrap().expect("row").method_id;
+        assert!(step!(
+            true,
+            "method details",
+            store
+                .set_method_details(method_id, &MethodDetails::default())
+                .await
+                .unwrap()
+        ));
+        assert!(step!(
+            true,
+            "core dataset",
+            store.set_dataset_core("synthA", false).await.unwrap()
+        ));
+        assert!(step!(
+            false,
+            "no such dataset",
+            !store.set_dataset_core("nothing", true).await.unwrap()
         ));
         // The same method's next upload changes its metadata, which the boards show.
         let mut g = fixture("CosyPose");

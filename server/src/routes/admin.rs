@@ -29,6 +29,7 @@ pub fn router(app: AppState) -> Router<AppState> {
             "/api/v1/admin/datasets/{name}/retire",
             post(api_retire_dataset),
         )
+        .route("/api/v1/admin/datasets/{name}/core", post(api_set_core))
         .route("/api/v1/admin/audit", get(api_audit))
         .route(
             "/admin/submissions/{id}/{action}",
@@ -36,6 +37,7 @@ pub fn router(app: AppState) -> Router<AppState> {
         )
         .route("/admin/datasets", post(page_add_dataset))
         .route("/admin/datasets/{name}/retire", post(page_retire_dataset))
+        .route("/admin/datasets/{name}/core", post(page_set_core))
         .layer(axum::middleware::from_fn_with_state(app, admins_only))
 }
 
@@ -158,6 +160,47 @@ async fn page_retire_dataset(
     let actor = admin(&viewer)?;
     viewer.check_csrf(&f.csrf)?;
     moderation::retire_dataset(&app, actor, &name).await?;
+    Ok(Redirect::to("/datasets").into_response())
+}
+
+#[derive(Deserialize)]
+struct Core {
+    core: bool,
+}
+
+async fn api_set_core(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Json(c): Json<Core>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    moderation::set_core(&app, actor, &name, c.core).await?;
+    Ok(Json(json!({ "ok": true, "dataset": name, "core": c.core })))
+}
+
+#[derive(Deserialize)]
+struct CoreForm {
+    /// `yes` or `no`.
+    core: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn page_set_core(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Form(f): Form<CoreForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    let core = match f.core.as_str() {
+        "yes" => true,
+        "no" => false,
+        _ => return Err(AppError::BadRequest("`core` must be yes or no".into())),
+    };
+    moderation::set_core(&app, actor, &name, core).await?;
     Ok(Redirect::to("/datasets").into_response())
 }
 

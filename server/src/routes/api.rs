@@ -15,7 +15,9 @@ use serde_json::json;
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::board_cache::Format;
+use crate::domain::MethodForm;
 use crate::error::{AppError, AppResult};
+use crate::methods;
 use crate::routes::boards;
 use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
@@ -26,7 +28,7 @@ pub fn router(max_upload: u64) -> Router<AppState> {
     Router::new()
         .route("/api/v1/datasets", get(datasets))
         .route("/api/v1/methods", get(methods))
-        .route("/api/v1/methods/{id}", get(method))
+        .route("/api/v1/methods/{id}", get(method).post(edit_method))
         .route(
             "/api/v1/submissions",
             get(recent_submissions).merge(
@@ -36,6 +38,8 @@ pub fn router(max_upload: u64) -> Router<AppState> {
             ),
         )
         .route("/api/v1/submissions/{id}", get(submission))
+        .route("/api/v1/submissions/{id}/pin", post(pin))
+        .route("/api/v1/submissions/{id}/unpin", post(unpin))
         .route("/api/v1/leaderboards/{protocol}", get(leaderboard))
         .route("/api/v1/openapi.json", get(openapi))
 }
@@ -62,6 +66,40 @@ async fn method(
     }
     Ok(Json(
         json!({ "method": method, "submissions": submissions }),
+    ))
+}
+
+/// The owner (or an administrator) states the method's details; fields left out stay.
+async fn edit_method(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Json(form): Json<MethodForm>,
+) -> AppResult<Json<serde_json::Value>> {
+    let user = viewer.require_user()?;
+    let method = methods::edit(&app, user, id, form).await?;
+    Ok(Json(json!({ "method": method })))
+}
+
+async fn pin(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<Json<serde_json::Value>> {
+    methods::pin(&app, viewer.require_user()?, id, true).await?;
+    Ok(Json(
+        json!({ "ok": true, "submission": id, "pinned": true }),
+    ))
+}
+
+async fn unpin(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<Json<serde_json::Value>> {
+    methods::pin(&app, viewer.require_user()?, id, false).await?;
+    Ok(Json(
+        json!({ "ok": true, "submission": id, "pinned": false }),
     ))
 }
 

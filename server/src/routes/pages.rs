@@ -7,18 +7,21 @@ use askama::Template;
 use askama_web::WebTemplate;
 use axum::Router;
 use axum::extract::multipart::MultipartRejection;
-use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
+use axum::extract::{DefaultBodyLimit, Form, Multipart, Path, Query, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::middleware::from_fn;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
 use evaluator::Report;
 use evaluator::protocol::ProtocolName;
+use serde::Deserialize;
 
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::board_cache::Format;
+use crate::domain::{MethodForm, Modality, ModelScope, TrainingData};
 use crate::error::{AppError, AppResult, ErrorBody};
+use crate::methods;
 use crate::routes::boards;
 use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
@@ -33,8 +36,10 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/", get(home))
         .route("/leaderboards/{protocol}", get(leaderboard))
         .route("/datasets", get(datasets))
-        .route("/methods/{id}", get(method))
+        .route("/methods/{id}", get(method).post(edit_method))
         .route("/submissions/{id}", get(submission))
+        .route("/submissions/{id}/pin", post(pin))
+        .route("/submissions/{id}/unpin", post(unpin))
         .route(
             "/submit",
             get(submit_form).merge(
@@ -165,13 +170,26 @@ async fn leaderboard_page(
 #[template(path = "datasets.html")]
 struct DatasetsPage {
     datasets: Vec<DatasetRow>,
-    /// For an administrator's browser: the CSRF token of the add and retire forms.
+    /// The names of the core datasets.
+    core: Vec<String>,
+    /// For an administrator's browser: the CSRF token of the add, retire and core forms.
     admin_csrf: Option<String>,
 }
 
+impl DatasetsPage {
+    fn is_core(&self, name: &str) -> bool {
+        self.core.iter().any(|c| c == name)
+    }
+}
+
 async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<DatasetsPage> {
+    let datasets = app.store.datasets().await?;
     Ok(DatasetsPage {
-        datasets: app.store.datasets().await?,
+        core: views::core_datasets(&datasets)
+            .into_iter()
+            .map(|d| d.name)
+            .collect(),
+        datasets,
         admin_csrf: viewer
             .session
             .as_ref()
@@ -185,17 +203,81 @@ async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<Data
 struct MethodPage {
     method: MethodRow,
     submissions: Vec<SubmissionRow>,
+    /// For its owner's (or an administrator's) browser: the CSRF token of the edit form.
+    edit_csrf: Option<String>,
+    model_scopes: &'static [ModelScope],
+    modalities: &'static [Modality],
+    training: &'static [TrainingData],
 }
 
-async fn method(State(app): State<AppState>, Path(id): Path<i64>) -> AppResult<MethodPage> {
+async fn method(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<MethodPage> {
     let submissions = app.store.public_submissions_of_method(id).await?;
-    if submissions.is_empty() {
+    let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
+    let may_edit = viewer.can_see(method.owner_id);
+    if submissions.is_empty() && !may_edit {
         return Err(AppError::NotFound);
     }
     Ok(MethodPage {
-        method: app.store.method(id).await?.ok_or(AppError::NotFound)?,
+        edit_csrf: viewer
+            .session
+            .as_ref()
+            .filter(|_| may_edit)
+            .map(|s| s.csrf_token.clone()),
+        method,
         submissions,
+        model_scopes: ModelScope::ALL,
+        modalities: Modality::ALL,
+        training: TrainingData::ALL,
     })
+}
+
+#[derive(Deserialize)]
+struct MethodEditForm {
+    #[serde(default)]
+    csrf: String,
+    #[serde(flatten)]
+    fields: MethodForm,
+}
+
+async fn edit_method(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<MethodEditForm>,
+) -> AppResult<Response> {
+    let user = viewer.check_csrf(&f.csrf)?;
+    methods::edit(&app, user, id, f.fields).await?;
+    Ok(Redirect::to(&format!("/methods/{id}")).into_response())
+}
+
+#[derive(Deserialize)]
+struct CsrfForm {
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn pin(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    methods::pin(&app, viewer.check_csrf(&f.csrf)?, id, true).await?;
+    Ok(Redirect::to(&format!("/submissions/{id}")).into_response())
+}
+
+async fn unpin(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    methods::pin(&app, viewer.check_csrf(&f.csrf)?, id, false).await?;
+    Ok(Redirect::to(&format!("/submissions/{id}")).into_response())
 }
 
 #[derive(Template, WebTemplate)]
@@ -206,6 +288,8 @@ struct SubmissionPage {
     eccv18: Option<Report>,
     /// For an administrator's browser: the CSRF token of the moderation buttons.
     admin_csrf: Option<String>,
+    /// For its owner's (or an administrator's) browser: the CSRF token of the pin button.
+    owner_csrf: Option<String>,
 }
 
 async fn submission(
@@ -215,6 +299,11 @@ async fn submission(
 ) -> AppResult<SubmissionPage> {
     let view = views::submission(&app, id, &viewer).await?;
     Ok(SubmissionPage {
+        owner_csrf: viewer
+            .session
+            .as_ref()
+            .filter(|_| viewer.can_see(view.submission.owner_id))
+            .map(|s| s.csrf_token.clone()),
         bop19: view.scores.get(&ProtocolName::Bop19).cloned(),
         eccv18: view.scores.get(&ProtocolName::Eccv18).cloned(),
         view,

@@ -24,6 +24,10 @@ pub enum AdminAction {
     AddDataset,
     #[serde(rename = "retire dataset")]
     RetireDataset,
+    #[serde(rename = "core dataset")]
+    CoreDataset,
+    #[serde(rename = "not core dataset")]
+    NotCoreDataset,
 }
 
 impl AdminAction {
@@ -35,6 +39,8 @@ impl AdminAction {
             AdminAction::Delete => "delete",
             AdminAction::AddDataset => "add dataset",
             AdminAction::RetireDataset => "retire dataset",
+            AdminAction::CoreDataset => "core dataset",
+            AdminAction::NotCoreDataset => "not core dataset",
         }
     }
 }
@@ -49,6 +55,8 @@ impl FromStr for AdminAction {
             AdminAction::Delete,
             AdminAction::AddDataset,
             AdminAction::RetireDataset,
+            AdminAction::CoreDataset,
+            AdminAction::NotCoreDataset,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

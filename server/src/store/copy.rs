@@ -24,6 +24,7 @@ const TABLES: &[&str] = &[
     "submission_files",
     "scores",
     "object_scores",
+    "entry_pins",
     "api_tokens",
     "sessions",
     "audit_log",

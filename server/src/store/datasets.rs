@@ -28,6 +28,10 @@ pub struct DatasetRow {
     /// (`None` for a dataset not registered again since the hash was introduced).
     #[serde(skip)]
     pub content_hash: Option<String>,
+    /// Whether it is a core dataset as set by `--core-datasets` or an administrator; `None`:
+    /// never set, the default rule decides (see `views::core_datasets`).
+    #[serde(skip)]
+    pub core: Option<bool>,
 }
 
 fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
@@ -45,6 +49,7 @@ fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
         added_at: row.try_get("added_at")?,
         retired: row.try_get::<i64, _>("retired")? != 0,
         content_hash: row.try_get("content_hash")?,
+        core: row.try_get::<Option<i64>, _>("core")?.map(|c| c != 0),
     })
 }
 
@@ -102,6 +107,43 @@ impl Store {
             .await?;
         self.commit_board_change(tx, done.rows_affected() == 1)
             .await
+    }
+
+    /// Makes a served dataset core or not; false when no served dataset has that name.
+    pub async fn set_dataset_core(&self, name: &str, core: bool) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let done = sqlx::query("UPDATE datasets SET core = $1 WHERE name = $2 AND retired = 0")
+            .bind(i64::from(core))
+            .bind(name)
+            .execute(&mut *tx)
+            .await?;
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
+    }
+
+    /// Makes exactly the served datasets named core, and every other one not; when a name is
+    /// not a served dataset nothing changes and the unknown names are returned.
+    pub async fn set_core_datasets(&self, names: &[String]) -> StoreResult<Vec<String>> {
+        let mut tx = self.write_transaction().await?;
+        sqlx::query("UPDATE datasets SET core = 0 WHERE retired = 0")
+            .execute(&mut *tx)
+            .await?;
+        let mut unknown = Vec::new();
+        for name in names {
+            let done = sqlx::query("UPDATE datasets SET core = 1 WHERE name = $1 AND retired = 0")
+                .bind(name)
+                .execute(&mut *tx)
+                .await?;
+            if done.rows_affected() == 0 {
+                unknown.push(name.clone());
+            }
+        }
+        if !unknown.is_empty() {
+            tx.rollback().await?;
+            return Ok(unknown);
+        }
+        self.commit_board_change(tx, true).await?;
+        Ok(unknown)
     }
 
     /// The datasets served, by name.

@@ -30,21 +30,57 @@ pub struct ScoreRow {
     pub estimates_ignored: i64,
 }
 
-/// A leaderboard entry: the latest finished public submission of a method on a dataset.
+/// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BoardEntry {
     pub method_id: i64,
     pub method: String,
+    /// The name of the account the method belongs to.
+    pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    /// The method's hardware.
     pub hardware: String,
     pub dataset_id: i64,
     pub dataset: String,
     pub submission_id: i64,
     pub submitted_at: i64,
+    /// Its owner pinned it (otherwise it is the best).
+    pub pinned: bool,
     pub score: ScoreRow,
     pub object_scores: BTreeMap<i64, f64>,
 }
+
+/// Which submission is a method's entry on a dataset under a protocol.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Entry {
+    pub protocol: ProtocolName,
+    pub submission_id: i64,
+    /// Pinned by the method's owner; otherwise the best.
+    pub pinned: bool,
+}
+
+/// The id of the entry of the method and dataset of the submission `s` under the protocol
+/// `protocol` (an SQL expression): the submission its owner pinned, if it is public, finished
+/// and scored under the protocol; otherwise its best public finished submission there, the
+/// earlier one on a tie.
+fn entry_sql(protocol: &str) -> String {
+    format!(
+        "COALESCE((SELECT p.submission_id FROM entry_pins p \
+         JOIN submissions s3 ON s3.id = p.submission_id \
+         JOIN scores sc3 ON sc3.submission_id = s3.id AND sc3.protocol = {protocol} \
+         WHERE p.method_id = s.method_id AND p.dataset_id = s.dataset_id \
+         AND s3.status = 'done' AND s3.public = 1 AND s3.hidden = 0), \
+         (SELECT s2.id FROM submissions s2 JOIN scores sc2 ON sc2.submission_id = s2.id \
+         WHERE s2.method_id = s.method_id AND s2.dataset_id = s.dataset_id \
+         AND s2.status = 'done' AND s2.public = 1 AND s2.hidden = 0 AND sc2.protocol = {protocol} \
+         ORDER BY sc2.score DESC, s2.id LIMIT 1))"
+    )
+}
+
+/// Whether the submission `s` is pinned, as 0 or 1 on both databases.
+const PINNED_SQL: &str = "CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p \
+     WHERE p.submission_id = s.id) THEN 1 ELSE 0 END AS BIGINT)";
 
 fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
     Ok(ScoreRow {
@@ -82,33 +118,33 @@ impl Store {
             .collect()
     }
 
-    /// The leaderboard of a protocol, in one query: for every method and dataset, the latest
-    /// finished public submission's scores with its per-object scores, best score first
-    /// (optionally for one dataset only).
+    /// The leaderboard of a protocol, in one query: for every method and dataset, its entry's
+    /// scores with its per-object scores, best score first (optionally for one dataset only).
     pub async fn leaderboard(
         &self,
         protocol: ProtocolName,
         dataset_id: Option<i64>,
     ) -> StoreResult<Vec<BoardEntry>> {
-        let rows = sqlx::query(
+        let sql = format!(
             "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, sc.ar_vsd, \
              sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, sc.estimates_ignored, \
-             s.method_id, m.name AS method, m.training_data, m.modality, s.hardware, \
-             s.dataset_id, d.name AS dataset, s.finished_at, os.obj_id, os.value AS obj_value \
+             s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
+             m.modality, m.hardware, s.dataset_id, d.name AS dataset, s.finished_at, \
+             {PINNED_SQL} AS pinned, os.obj_id, os.value AS obj_value \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
+             LEFT JOIN users u ON u.id = m.owner_id \
              LEFT JOIN object_scores os ON os.score_id = sc.id \
              WHERE sc.protocol = $1 AND s.status = 'done' AND s.public = 1 AND s.hidden = 0 AND d.retired = 0 \
-             AND ($2 < 0 OR s.dataset_id = $2) \
-             AND s.id = (SELECT MAX(s2.id) FROM submissions s2 JOIN scores sc2 ON sc2.submission_id = s2.id \
-                 WHERE s2.method_id = s.method_id AND s2.dataset_id = s.dataset_id \
-                 AND s2.status = 'done' AND s2.public = 1 AND s2.hidden = 0 AND sc2.protocol = $1) \
-             ORDER BY sc.score DESC, m.name, sc.id, os.obj_id",
-        )
-        .bind(protocol.as_str())
-        .bind(dataset_id.unwrap_or(-1))
-        .fetch_all(&self.pool)
-        .await?;
+             AND ($2 < 0 OR s.dataset_id = $2) AND s.id = {} \
+             ORDER BY sc.score DESC, m.id, sc.id, os.obj_id",
+            entry_sql("$1")
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(protocol.as_str())
+            .bind(dataset_id.unwrap_or(-1))
+            .fetch_all(&self.pool)
+            .await?;
         let mut entries: Vec<BoardEntry> = Vec::new();
         for r in &rows {
             let score_id: i64 = r.try_get("score_id")?;
@@ -116,6 +152,7 @@ impl Store {
                 entries.push(BoardEntry {
                     method_id: r.try_get("method_id")?,
                     method: r.try_get("method")?,
+                    owner: r.try_get("owner")?,
                     training_data: optional_column(r, "training_data")?,
                     modality: optional_column(r, "modality")?,
                     hardware: r.try_get("hardware")?,
@@ -125,6 +162,7 @@ impl Store {
                     submitted_at: r
                         .try_get::<Option<i64>, _>("finished_at")?
                         .unwrap_or_default(),
+                    pinned: r.try_get::<i64, _>("pinned")? != 0,
                     score: score(r)?,
                     object_scores: BTreeMap::new(),
                 });
@@ -138,5 +176,60 @@ impl Store {
             }
         }
         Ok(entries)
+    }
+
+    /// The entries, per protocol, of a method on a dataset.
+    pub async fn entries(&self, method_id: i64, dataset_id: i64) -> StoreResult<Vec<Entry>> {
+        let sql = format!(
+            "SELECT sc.protocol, s.id AS submission_id, {PINNED_SQL} AS pinned \
+             FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
+             WHERE s.method_id = $1 AND s.dataset_id = $2 AND s.id = {} ORDER BY sc.protocol",
+            entry_sql("sc.protocol")
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(method_id)
+            .bind(dataset_id)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter()
+            .map(|r| {
+                Ok(Entry {
+                    protocol: parse_column("protocol", r.try_get("protocol")?)?,
+                    submission_id: r.try_get("submission_id")?,
+                    pinned: r.try_get::<i64, _>("pinned")? != 0,
+                })
+            })
+            .collect()
+    }
+
+    /// Whether the submission is pinned as its method's entry on its dataset.
+    pub async fn is_pinned(&self, submission_id: i64) -> StoreResult<bool> {
+        let row = sqlx::query("SELECT submission_id FROM entry_pins WHERE submission_id = $1")
+            .bind(submission_id)
+            .fetch_optional(&self.pool)
+            .await?;
+        Ok(row.is_some())
+    }
+
+    /// Pins a submission as its method's entry on its dataset (`pin`), or removes that pin if
+    /// it is this submission's; true when the boards change.
+    pub async fn set_pinned(&self, submission_id: i64, pin: bool) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let done = if pin {
+            sqlx::query(
+                "INSERT INTO entry_pins (method_id, dataset_id, submission_id) \
+                 SELECT method_id, dataset_id, id FROM submissions WHERE id = $1 \
+                 ON CONFLICT (method_id, dataset_id) DO UPDATE SET submission_id = excluded.submission_id",
+            )
+            .bind(submission_id)
+            .execute(&mut *tx)
+            .await?
+        } else {
+            sqlx::query("DELETE FROM entry_pins WHERE submission_id = $1")
+                .bind(submission_id)
+                .execute(&mut *tx)
+                .await?
+        };
+        self.commit_board_change(tx, done.rows_affected() > 0).await
     }
 }

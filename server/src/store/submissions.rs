@@ -447,6 +447,10 @@ impl Store {
             .bind(id)
             .execute(&mut *tx)
             .await?;
+        sqlx::query("DELETE FROM entry_pins WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
         sqlx::query("DELETE FROM submissions WHERE id = $1")
             .bind(id)
             .execute(&mut *tx)
@@ -524,12 +528,13 @@ async fn create_one(
     let mut meta_changed = false;
     let method_id = match method_id {
         Some(id) => {
-            meta_changed = update_method_meta(tx, id, new.meta).await?;
+            meta_changed = update_method_meta(tx, id, new.meta, new.hardware).await?;
             id
         }
         None => sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-             modality, created_at, owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id",
+             modality, created_at, owner_id, hardware) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) \
+             RETURNING id",
         )
         .bind(new.method.as_str())
         .bind(new.meta.description.as_str())
@@ -539,6 +544,7 @@ async fn create_one(
         .bind(new.meta.modality.map_or("", |m| m.as_str()))
         .bind(now)
         .bind(new.owner_id)
+        .bind(new.hardware.as_str())
         .fetch_one(&mut **tx)
         .await?
         .try_get("id")?,
@@ -572,12 +578,14 @@ async fn create_one(
     Ok((Created::New(id), meta_changed))
 }
 
-/// Updates the metadata fields a new upload gives; the others keep their stored values. True
-/// when a field was written.
+/// Updates the metadata fields a new upload gives, hardware included; the others keep their
+/// stored values (an upload without `hardware` leaves the method's as it was). True when a
+/// field was written.
 async fn update_method_meta(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
     id: i64,
     meta: &MethodMeta,
+    hardware: &Hardware,
 ) -> StoreResult<bool> {
     let mut written = false;
     for (column, value) in [
@@ -589,6 +597,7 @@ async fn update_method_meta(
             meta.training_data.map_or("", |t| t.as_str()),
         ),
         ("modality", meta.modality.map_or("", |m| m.as_str())),
+        ("hardware", hardware.as_str()),
     ] {
         if !value.is_empty() {
             // `column` comes from the list above, never from the request.
