@@ -24,6 +24,7 @@ const TABLES: &[&str] = &[
     "submission_files",
     "scores",
     "object_scores",
+    "estimate_errors",
     "api_tokens",
     "sessions",
     "audit_log",
