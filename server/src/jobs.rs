@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use evaluator::protocol::{Protocol, ProtocolName};
-use evaluator::{Progress, Report, evaluate, results};
+use evaluator::{Progress, evaluate, results};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 

@@ -449,7 +449,7 @@ pub struct MySubmission {
     /// Per protocol, the headline score (AR for bop19, recall for eccv18).
     pub scores: BTreeMap<ProtocolName, f64>,
     pub url: String,
-    #[serde(flatten)]
+    /// Downloads and actions.
     pub links: OwnerLinks,
 }
 

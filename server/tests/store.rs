@@ -309,10 +309,7 @@ fn submissions_queue_and_scores(kind: Db) {
             (done.work, done.work_done, done.eval_ms),
             (work, work, Some(1000))
         );
-        assert_eq!(
-            store.measured_speed().await.unwrap(),
-            Some(work as f64 * 1000.0 / 1000.0)
-        );
+        assert_eq!(store.measured_speed().await.unwrap(), Some(work as f64));
         // The per-estimate errors come back typed, one set per protocol.
         let stored = store
             .estimate_errors(id, ProtocolName::Bop19)
