@@ -413,7 +413,7 @@ fn progress_moves_while_a_job_runs(kind: Db) {
         assert_eq!(r.status(), 202);
         r.json::<Value>().expect("json")["id"].as_i64().expect("id")
     };
-    let running = id_of(upload(&server, "big-net", "synthbig", &big, Some("bop19")));
+    let running = id_of(upload(&server, "big-net", "synthbig", &big, None));
     let start_wait = Instant::now();
     while get_json(&format!("{base}/api/v1/submissions/{running}"))["status"] == "queued" {
         assert!(
