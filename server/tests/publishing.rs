@@ -380,7 +380,7 @@ fn big_job(datasets: &Path, dir: &Path) -> PathBuf {
             "dataset",
             "synth",
             "--scenes",
-            "20",
+            "40",
             "--images-per-scene",
             "10",
         ],
