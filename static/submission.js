@@ -1,4 +1,5 @@
-// Follows a queued or running submission and reloads the page once it is finished.
+// Follows a queued or running submission every second (place in the queue, estimates done,
+// when the scores are expected) and reloads the page once it is finished.
 (function () {
   const box = document.getElementById("status");
   if (!box) return;
@@ -6,6 +7,7 @@
   if (state !== "queued" && state !== "running") return;
   const bar = document.getElementById("progress");
   const text = document.getElementById("status-text");
+  const detail = document.getElementById("progress-text");
   async function poll() {
     try {
       const r = await fetch("/api/v1/submissions/" + box.dataset.id, { headers: { Accept: "application/json" } });
@@ -14,6 +16,7 @@
         bar.value = s.progress;
         text.textContent = s.status + (s.status === "running" ? " " + Math.round(s.progress * 100) + " %" : "");
         text.className = "status " + s.status;
+        detail.textContent = s.progress_text ? "· " + s.progress_text : "";
         if (s.status === "done" || s.status === "failed") { location.reload(); return; }
       }
     } catch (e) { /* the next poll retries */ }

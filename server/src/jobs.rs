@@ -1,6 +1,7 @@
 //! The evaluation workers. The queue is the submissions table: a worker claims a row with a
-//! lease, renews the lease with a heartbeat that also records progress, and stores the scores
-//! in the same transaction that marks the row done. A worker that dies (crash, SIGKILL,
+//! lease, renews the lease with a heartbeat that also records progress (twice a second, so a
+//! page following the job moves every second), and stores the scores, the per-estimate errors
+//! and the time the evaluation took in the same transaction that marks the row done. A worker that dies (crash, SIGKILL,
 //! restart) stops renewing; once its lease expires any worker, in this process or on another
 //! machine sharing the PostgreSQL database, takes the job up again. The in-process `Notify`
 //! only wakes idle workers early.
@@ -21,13 +22,15 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use evaluator::protocol::{Protocol, ProtocolName};
-use evaluator::{Progress, Report, evaluate, results};
+use evaluator::{Progress, evaluate, results};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
 use crate::app::{AppState, Role};
 use crate::shutdown::Shutdown;
 use crate::store::StoreResult;
+use crate::store::errors::NewErrors;
+use crate::store::queue::Finished;
 use crate::store::submissions::{Fault, SubmissionRow};
 use crate::uploaded_file;
 
@@ -46,6 +49,8 @@ const MAX_STORE_BACKOFF: Duration = Duration::from_secs(5);
 const REFUSAL_PAUSE: Duration = Duration::from_secs(300);
 /// How long a stopping worker keeps trying to give its job back.
 const RELEASE_GRACE: Duration = Duration::from_secs(5);
+/// Longest pause between two progress records of a running job: pages poll every second.
+const PROGRESS_EVERY: Duration = Duration::from_millis(500);
 
 /// Starts `app.config.workers` workers (none for `serve --workers 0`); each ends once
 /// `shutdown` is set, after giving back the job it was running.
@@ -159,7 +164,7 @@ impl Worker {
         let (app, worker) = (&self.app, self.id.as_str());
         tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
         let timer = crate::metrics::job_started(job.attempts);
-        let job_state = JobState::new(job.protocols.len());
+        let job_state = JobState::new(job.protocols.len(), job.work);
         let beat = self.heartbeat(job.id, &job_state);
         let outcome = tokio::select! {
             outcome = self.evaluate_with_retries(&job, &job_state) => outcome,
@@ -172,17 +177,21 @@ impl Worker {
         // What the metrics count once stored: estimates evaluated for a done job, nothing for
         // a failed one; a job handed back to the queue has not ended.
         let ending = match &outcome {
-            Ok(reports) => Some(Some(
-                reports.iter().map(|r| r.estimates_evaluated as u64).sum(),
+            Ok(finished) => Some(Some(
+                finished
+                    .reports
+                    .iter()
+                    .map(|r| r.estimates_evaluated as u64)
+                    .sum(),
             )),
             Err(JobError::User(_)) => Some(None),
             Err(JobError::Service(_)) if job.attempts >= MAX_ATTEMPTS => Some(None),
             Err(_) => None,
         };
         let stored = match outcome {
-            Ok(reports) => {
+            Ok(finished) => {
                 self.persist("store the scores", None, || {
-                    app.store.finish(id, worker, &reports)
+                    app.store.finish(id, worker, &finished)
                 })
                 .await
             }
@@ -281,7 +290,8 @@ impl Worker {
         }
     }
 
-    /// Renews the lease and publishes progress until aborted; cancels the evaluation when
+    /// Renews the lease and publishes progress until aborted, in one small update every
+    /// [`PROGRESS_EVERY`] (or a third of the lease, if shorter); cancels the evaluation when
     /// the job turns out to be another worker's.
     fn heartbeat(&self, id: i64, state: &JobState) -> JoinHandle<()> {
         let (app, worker) = (self.app.clone(), self.id.clone());
@@ -291,16 +301,18 @@ impl Worker {
             state.cancel.clone(),
             state.taken_over.clone(),
         );
-        let n = state.protocols;
+        let (n, work) = (state.protocols, state.work);
         tokio::spawn(async move {
             let every =
-                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
+                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64)
+                    .min(PROGRESS_EVERY);
             loop {
                 tokio::time::sleep(every).await;
-                let progress = counter.fraction(n, started.load(Ordering::Relaxed) as usize);
+                let progress = counter.fraction(n, started.load(Ordering::Relaxed) as usize, work);
+                let done = counter.done.load(Ordering::Relaxed) as i64;
                 match app
                     .store
-                    .heartbeat(id, &worker, app.config.lease_ms(), progress)
+                    .heartbeat(id, &worker, app.config.lease_ms(), progress, done)
                     .await
                 {
                     Ok(true) => {}
@@ -322,7 +334,7 @@ impl Worker {
         &self,
         job: &SubmissionRow,
         state: &JobState,
-    ) -> Result<Vec<Report>, JobError> {
+    ) -> Result<Finished, JobError> {
         let mut pause = FIRST_BACKOFF;
         let mut tries = 1;
         loop {
@@ -343,7 +355,7 @@ impl Worker {
         &self,
         job: &SubmissionRow,
         state: &JobState,
-    ) -> Result<Vec<Report>, JobError> {
+    ) -> Result<Finished, JobError> {
         let app = &self.app;
         let row = app
             .store
@@ -395,29 +407,53 @@ impl Worker {
         let pool_app = app.clone();
         tokio::task::spawn_blocking(move || {
             pool_app.pool.install(|| {
+                let clock = Instant::now();
                 let results = results::parse_results(&bytes[..])
                     .map_err(|p| JobError::User(p.to_string()))?;
                 let mut reports = Vec::with_capacity(protocols.len());
+                let mut errors = Vec::with_capacity(protocols.len());
                 for name in protocols {
                     started.fetch_add(1, Ordering::Relaxed);
                     let protocol = Protocol::named(name);
-                    let report = evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
-                        .map_err(|e| match e {
-                            evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
-                                JobError::TakenOver
-                            }
-                            evaluator::Error::Cancelled => JobError::Stopped,
-                            other => JobError::Service(other.to_string()),
-                        })?
-                        .report;
-                    reports.push(report);
+                    let evaluation =
+                        evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
+                            .map_err(|e| match e {
+                                evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
+                                    JobError::TakenOver
+                                }
+                                evaluator::Error::Cancelled => JobError::Stopped,
+                                other => JobError::Service(other.to_string()),
+                            })?;
+                    errors.push(error_rows(name, &evaluation)?);
+                    reports.push(evaluation.report);
                 }
-                Ok(reports)
+                Ok(Finished {
+                    reports,
+                    errors,
+                    eval_ms: clock.elapsed().as_millis() as i64,
+                })
             })
         })
         .await
         .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
     }
+}
+
+/// The per-estimate errors of one protocol, compressed for the store.
+fn error_rows(
+    protocol: ProtocolName,
+    evaluation: &evaluator::Evaluation,
+) -> Result<NewErrors, JobError> {
+    let rows = evaluation.error_rows();
+    let json = serde_json::to_vec(&rows)
+        .map_err(|e| JobError::Service(format!("cannot write the errors: {e}")))?;
+    let gzip = uploaded_file::compress(&json)
+        .map_err(|e| JobError::Service(format!("cannot compress the errors: {e}")))?;
+    Ok(NewErrors {
+        protocol,
+        rows_count: rows.len() as i64,
+        gzip,
+    })
 }
 
 /// What the evaluation threads and the heartbeat of one job share.
@@ -426,6 +462,8 @@ struct JobState {
     /// Protocols started so far.
     started: Arc<AtomicU64>,
     protocols: usize,
+    /// Estimate evaluations the whole job takes, as the pre-flight counted them (0: unknown).
+    work: i64,
     /// Set to stop the evaluation at its next image.
     cancel: Arc<AtomicBool>,
     /// Set by the heartbeat when another worker owns the job.
@@ -433,7 +471,7 @@ struct JobState {
 }
 
 impl JobState {
-    fn new(protocols: usize) -> JobState {
+    fn new(protocols: usize, work: i64) -> JobState {
         JobState {
             counter: Arc::new(Counter {
                 done: AtomicU64::new(0),
@@ -441,6 +479,7 @@ impl JobState {
             }),
             started: Arc::new(AtomicU64::new(0)),
             protocols,
+            work,
             cancel: Arc::new(AtomicBool::new(false)),
             taken_over: Arc::new(AtomicBool::new(false)),
         }
@@ -470,12 +509,15 @@ impl Progress for Counter {
 }
 
 impl Counter {
-    fn fraction(&self, protocols: usize, started: usize) -> f64 {
-        // Later protocols have not announced their totals yet: count each protocol equally.
+    fn fraction(&self, protocols: usize, started: usize, work: i64) -> f64 {
         let (done, total) = (
             self.done.load(Ordering::Relaxed),
             self.total.load(Ordering::Relaxed),
         );
+        if work > 0 {
+            return (done as f64 / work as f64).clamp(0.0, 0.99);
+        }
+        // Later protocols have not announced their totals yet: count each protocol equally.
         let current = if total == 0 {
             0.0
         } else {

@@ -12,7 +12,12 @@ pub fn document() -> Value {
             "version": env!("CARGO_PKG_VERSION"),
             "description": "Evaluation and leaderboards of the BOP 6D object pose benchmark. Scores use bop_toolkit's key names."
         },
-        "components": { "securitySchemes": { "bearer": { "type": "http", "scheme": "bearer", "description": "a personal API token from /account" } } },
+        "components": {
+            "securitySchemes": { "bearer": { "type": "http", "scheme": "bearer", "description": "a personal API token from /account" } },
+            "schemas": { "VisibilityChange": { "type": "object", "required": ["visibility"], "properties": {
+                "visibility": { "type": "string", "enum": ["public", "private"] },
+                "confirm": { "type": "boolean", "default": false, "description": "publish despite red flags" } } } }
+        },
         "paths": {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
@@ -68,7 +73,7 @@ pub fn document() -> Value {
                             "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
                             "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
                             "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
-                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: public for a new submission. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's (re-sending a file is how to publish or withdraw it); without the field it keeps its own" },
+                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: private (only its owner and the administrators see it; everyone else gets 404). public: published once evaluated, unless the pre-flight raises red flags (translations in metres, more than half of the targets without an estimate, estimates for objects the dataset lacks): then it stays private, `held`, until its owner confirms (POST .../visibility with confirm=true). Anything else is 400. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's; without the field it keeps its own" },
                             "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset, or a .zip of them (unpacked, within the upload limit); each result file becomes a submission" }
                         } } } } },
                     "responses": {
@@ -84,8 +89,28 @@ pub fn document() -> Value {
                     }
                 }
             },
-            "/api/v1/submissions/{id}": { "get": { "summary": "Status, progress, pre-flight report and, once done, the scores per protocol",
-                "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/submissions/{id}": {
+                "get": { "summary": "Status, progress (work_done of work estimate evaluations, progress_text and eta_seconds from the speed measured on this server, the queue place), publication state, pre-flight report (red_flags, estimates_evaluated, estimated_seconds) and, once done, the scores per protocol; for its owner also `owner` with the download and action links",
+                    "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission, or a private one of another account" } } },
+                "delete": { "summary": "Delete a submission with its file, scores and errors (owner or administrator)", "security": [{ "bearer": [] }],
+                    "parameters": [id_param], "responses": { "200": { "description": "{ok, deleted}" }, "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" } } } },
+            "/api/v1/submissions/{id}/visibility": { "post": { "summary": "Publish or withdraw a submission (owner or administrator); the boards change at once",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "requestBody": { "required": true, "content": {
+                    "application/x-www-form-urlencoded": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } },
+                    "application/json": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } } } },
+                "responses": { "200": { "description": "{id, visibility, held, publication}" }, "400": { "description": "visibility is not public or private" },
+                    "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" },
+                    "409": { "description": "red flags hold publication back: {error} names them; send confirm=true to publish anyway" } } } },
+            "/api/v1/submissions/{id}/file": { "get": { "summary": "The uploaded result file, as sent (owner or administrator)", "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "text/csv" }, "404": { "description": "no such submission of yours" } } } },
+            "/api/v1/submissions/{id}/report": { "get": { "summary": "The JSON reports, one per protocol (keys as `poseboard eval --out` writes them)", "parameters": [id_param],
+                "responses": { "200": { "description": "{bop19: {...}, eccv18: {...}}" }, "404": { "description": "no such submission, or a private one of another account" } } } },
+            "/api/v1/submissions/{id}/errors/{protocol}": { "get": { "summary": "Every evaluated estimate's errors against each ground-truth instance (the layout of `poseboard eval --errors-out`), owner or administrator",
+                "security": [{ "bearer": [] }], "parameters": [id_param, { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } }],
+                "responses": { "200": { "description": "[{scene_id, im_id, obj_id, est_id, score, gt_ids, errors: {signature: [error per gt]}}]" }, "404": { "description": "no such submission of yours, or not evaluated under that protocol" } } } },
+            "/api/v1/me/submissions": { "get": { "summary": "Your submissions, private ones included, newest first, with status, publication state, headline scores, download and action links",
+                "security": [{ "bearer": [] }], "responses": { "200": { "description": "{submissions: [...]}" }, "401": { "description": "no valid API token or session" } } } },
             "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol",
                 "parameters": [
                     { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },

@@ -25,8 +25,61 @@ pub struct Preflight {
     /// Per protocol, estimates beyond those it considers per target (n_top).
     pub estimates_beyond_n_top: BTreeMap<ProtocolName, usize>,
     pub warnings: Vec<String>,
+    /// What holds publication back until the owner confirms (a file stored before these
+    /// were computed has none).
+    #[serde(default)]
+    pub red_flags: Vec<RedFlag>,
+    /// Per protocol, the estimates it will evaluate (the others are ignored or beyond n_top).
+    #[serde(default)]
+    pub estimates_evaluated: BTreeMap<ProtocolName, usize>,
     pub queue_position: i64,
+    /// Seconds until this file's scores are expected, from the speed measured on this server.
     pub estimated_seconds: f64,
+}
+
+/// A sign that a file is not what its owner meant to publish: its scores would be
+/// meaningless (close to zero), so publication waits for the owner's confirmation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum RedFlag {
+    /// The translations look like metres, not millimetres.
+    Metres {
+        median_mm: f64,
+        ground_truth_mm: f64,
+    },
+    /// More than half of the dataset's targets have no estimate.
+    MostTargetsMissing { without: usize, targets: usize },
+    /// Estimates for objects the dataset does not have (a file for another dataset?).
+    UnknownObjects { estimates: usize, objects: Vec<u32> },
+}
+
+impl std::fmt::Display for RedFlag {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RedFlag::Metres {
+                median_mm,
+                ground_truth_mm,
+            } => write!(
+                f,
+                "translations look like metres (median distance {median_mm:.3} against \
+                 {ground_truth_mm:.0} mm in the ground truth): t must be in millimetres"
+            ),
+            RedFlag::MostTargetsMissing { without, targets } => write!(
+                f,
+                "{without} of {targets} targets have no estimate (more than half)"
+            ),
+            RedFlag::UnknownObjects { estimates, objects } => {
+                let ids: Vec<String> = objects.iter().map(u32::to_string).collect();
+                write!(
+                    f,
+                    "{} for objects the dataset does not have (obj_id {}): is the file for \
+                     this dataset?",
+                    crate::wording::count(*estimates, "estimate", "estimates"),
+                    ids.join(", ")
+                )
+            }
+        }
+    }
 }
 
 impl Preflight {
@@ -65,9 +118,32 @@ impl Preflight {
                 ));
             }
         }
-        if let Some(w) = unit_warning(dataset, results) {
-            warnings.push(w);
+        let mut red_flags: Vec<RedFlag> = unit_flag(dataset, results).into_iter().collect();
+        if without * 2 > targets {
+            red_flags.push(RedFlag::MostTargetsMissing { without, targets });
         }
+        let unknown: Vec<u32> = results
+            .estimates
+            .iter()
+            .map(|e| e.obj_id)
+            .filter(|o| !dataset.objects.contains_key(o))
+            .collect();
+        if !unknown.is_empty() {
+            let mut objects = unknown.clone();
+            objects.sort_unstable();
+            objects.dedup();
+            red_flags.push(RedFlag::UnknownObjects {
+                estimates: unknown.len(),
+                objects,
+            });
+        }
+        // What the evaluator will select (see `evaluator::selection`): the estimates for
+        // targets, at most n_top per target.
+        let for_targets = results.estimates.len() - coverage.estimates_ignored;
+        let estimates_evaluated = beyond
+            .iter()
+            .map(|(&p, &n)| (p, for_targets.saturating_sub(n)))
+            .collect();
         Preflight {
             estimates: results.estimates.len(),
             images: coverage.images_with_estimates,
@@ -77,15 +153,22 @@ impl Preflight {
             estimates_for_absent_objects: coverage.estimates_for_absent_objects,
             estimates_beyond_n_top: beyond,
             warnings,
+            red_flags,
+            estimates_evaluated,
             queue_position: 0,
             estimated_seconds: 0.0,
         }
+    }
+
+    /// Estimate evaluations the job will take: the evaluated estimates summed over protocols.
+    pub fn work(&self) -> i64 {
+        self.estimates_evaluated.values().sum::<usize>() as i64
     }
 }
 
 /// Translations in metres instead of millimetres are a common mistake: the estimated
 /// distances are then about a thousand times smaller than the ground truth's.
-fn unit_warning(dataset: &Dataset, results: &Results) -> Option<String> {
+fn unit_flag(dataset: &Dataset, results: &Results) -> Option<RedFlag> {
     let median = |mut v: Vec<f64>| -> Option<f64> {
         if v.is_empty() {
             return None;
@@ -102,9 +185,8 @@ fn unit_warning(dataset: &Dataset, results: &Results) -> Option<String> {
             .flat_map(|im| im.gt.iter().map(|g| g.pose.t.norm()))
             .collect(),
     )?;
-    (est > 0.0 && est * 100.0 < gt).then(|| {
-        format!(
-            "translations look like metres (median distance {est:.3} against {gt:.0} mm in the ground truth): t must be in millimetres"
-        )
+    (est > 0.0 && est * 100.0 < gt).then_some(RedFlag::Metres {
+        median_mm: est,
+        ground_truth_mm: gt,
     })
 }

@@ -22,6 +22,7 @@ pub mod audit;
 pub mod board_version;
 pub mod copy;
 pub mod datasets;
+pub mod errors;
 pub mod files;
 pub mod health;
 pub mod methods;

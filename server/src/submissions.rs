@@ -27,14 +27,19 @@ use crate::clock::now_ms;
 use crate::domain::{Hardware, MethodName, Visibility};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
+use crate::publishing;
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
 use crate::store::submissions::{Created, CreatedAll, FairUse, NewSubmission, SubmissionRow};
 use crate::uploaded_file;
 
-/// Evaluation cost assumed per evaluated estimate and protocol, in seconds, for the estimate
-/// of the waiting time shown at upload.
-const SECONDS_PER_ESTIMATE: f64 = 0.004;
+/// Estimate evaluations per second assumed until this service has measured its own speed.
+const ASSUMED_SPEED: f64 = 250.0;
+
+/// Estimate evaluations per second: as measured on this service's recent jobs, else assumed.
+pub async fn speed(app: &App) -> AppResult<f64> {
+    Ok(app.store.measured_speed().await?.unwrap_or(ASSUMED_SPEED))
+}
 
 /// An upload, parsed.
 #[derive(Debug)]
@@ -46,8 +51,9 @@ pub struct Upload {
     pub protocols: Vec<ProtocolName>,
     pub meta: MethodMeta,
     pub hardware: Hardware,
-    /// As asked; `None`: public for a new submission, and unchanged for a file already
-    /// submitted (so a retry that leaves the field out never publishes a private one).
+    /// As asked; `None`: private for a new submission, and unchanged for a file already
+    /// submitted (so a retry that leaves the field out never publishes a private one). Asking
+    /// for public publishes once evaluated, unless red flags hold it back (see `publishing`).
     pub visibility: Option<Visibility>,
     /// One result file per dataset.
     pub files: Vec<UploadedFile>,
@@ -312,8 +318,9 @@ async fn store_all(
         hardware,
     } = *what;
     // The waiting time of each file counts the files of the upload before it.
-    let mut ahead = app.store.estimates_ahead(i64::MAX).await?;
-    let queue_position = app.store.queue_position(i64::MAX).await?;
+    let mut ahead = app.store.work_ahead(i64::MAX).await?;
+    let place = app.store.queue_place(i64::MAX).await?;
+    let speed = speed(app).await?;
     let mut kept = Vec::with_capacity(checked.len());
     for Checked {
         file,
@@ -322,10 +329,10 @@ async fn store_all(
         mut preflight,
     } in checked
     {
-        let cost = preflight.estimates as f64 * protocols.len() as f64;
-        preflight.estimated_seconds = (ahead as f64 + cost) * SECONDS_PER_ESTIMATE;
-        preflight.queue_position = queue_position;
-        ahead += estimates_count as i64;
+        let work = preflight.work();
+        preflight.estimated_seconds = (ahead + work) as f64 / speed;
+        preflight.queue_position = place.queued_ahead;
+        ahead += work;
         // The file goes into the database with its job (compressed off the async threads), so
         // any worker, on any machine, finds the two together.
         let path = file.tmp.to_path_buf();
@@ -352,20 +359,25 @@ async fn store_all(
     });
     let news: Vec<NewSubmission> = kept
         .iter()
-        .map(|k| NewSubmission {
-            owner_id: owner.id,
-            method,
-            meta,
-            dataset_id: k.dataset_id,
-            protocols,
-            visibility: visibility.unwrap_or(Visibility::Public),
-            file_name: &k.name,
-            file_sha256: &k.sha256,
-            file_size: k.size as i64,
-            file_gzip: &k.gzip,
-            estimates_count: k.estimates_count as i64,
-            hardware,
-            preflight: &k.preflight,
+        .map(|k| {
+            let (visibility, held) =
+                publishing::initial(visibility.unwrap_or(Visibility::Private), &k.preflight);
+            NewSubmission {
+                owner_id: owner.id,
+                method,
+                meta,
+                dataset_id: k.dataset_id,
+                protocols,
+                visibility,
+                held,
+                file_name: &k.name,
+                file_sha256: &k.sha256,
+                file_size: k.size as i64,
+                file_gzip: &k.gzip,
+                estimates_count: k.estimates_count as i64,
+                hardware,
+                preflight: &k.preflight,
+            }
         })
         .collect();
     // Files and submissions go in together or not at all: a refusal leaves nothing behind.
@@ -403,10 +415,19 @@ async fn store_all(
         let preflight = if duplicate {
             // Re-sending a file with another visibility is how its owner publishes or
             // withdraws it (the duplicate is of the uploader's own method, so theirs): nothing
-            // is lost and what they asked for holds.
+            // is lost and what they asked for holds, red flags holding publication back.
             if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
-                app.store.set_visibility(id, asked).await?;
-                submission.visibility = asked;
+                match publishing::initial(asked, &submission.preflight) {
+                    (_, true) => {
+                        app.store.hold_publication(id).await?;
+                        submission.held = true;
+                    }
+                    (v, false) => {
+                        app.store.set_visibility(id, v).await?;
+                        submission.visibility = v;
+                        submission.held = false;
+                    }
+                }
             }
             submission.preflight.clone()
         } else {

@@ -11,13 +11,17 @@ use serde::{Deserialize, Serialize};
 use crate::app::App;
 use crate::auth::Viewer;
 use crate::chart::Chart;
+use crate::clock::now_ms;
 use crate::demo::DEMO_DATASET;
 use crate::domain::{Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
+use crate::publishing;
+use crate::store::accounts::User;
 use crate::store::datasets::DatasetRow;
 use crate::store::scores::BoardEntry;
-use crate::store::submissions::{Status, SubmissionRow};
+use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
+use crate::wording;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Cell {
@@ -361,8 +365,20 @@ fn cell(e: &BoardEntry) -> Cell {
 pub struct SubmissionView {
     #[serde(flatten)]
     pub submission: SubmissionRow,
+    /// Queued submissions ahead of this one (queued only).
     pub queue_position: Option<i64>,
+    /// Where it stands in the queue (queued only).
+    pub queue: Option<QueuePlace>,
+    /// "public", "private: ...", or "held: <the red flags>".
+    pub publication: String,
+    /// While queued or running, in plain words: the place in the queue or the estimates
+    /// done, and when the scores are expected.
+    pub progress_text: Option<String>,
+    /// Seconds until the scores are expected, from the speed measured on this server.
+    pub eta_seconds: Option<f64>,
     pub preflight: Preflight,
+    /// The pre-flight's expectation at upload, in plain words.
+    pub preflight_text: String,
     /// Per protocol, the full report (the same keys as `poseboard eval --out`).
     pub scores: BTreeMap<ProtocolName, Report>,
     /// Per protocol with a public entry: the method's entry on this dataset, and whether it is
@@ -370,6 +386,9 @@ pub struct SubmissionView {
     pub entries: Vec<EntryStatus>,
     /// Its owner pinned it as the method's entry on this dataset.
     pub pinned: bool,
+    /// For its owner and the administrators: where to download it and what they can do.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub owner: Option<OwnerLinks>,
     #[serde(skip)]
     pub charts: Vec<Chart>,
 }
@@ -385,16 +404,77 @@ pub struct EntryStatus {
     pub reason: &'static str,
 }
 
+/// The downloads and actions of a submission, for its owner.
+#[derive(Clone, Debug, Serialize)]
+pub struct OwnerLinks {
+    /// The uploaded file, as sent.
+    pub file: String,
+    /// The JSON reports, one per protocol.
+    pub report: String,
+    /// Per protocol evaluated, every evaluated estimate's errors (JSON).
+    pub errors: BTreeMap<ProtocolName, String>,
+    /// POST `visibility=public|private` (and `confirm=true` for a held one).
+    pub visibility: String,
+    /// DELETE (API) or POST (page, `/submissions/{id}/delete`).
+    pub delete: String,
+}
+
+impl OwnerLinks {
+    fn of(s: &SubmissionRow) -> OwnerLinks {
+        let base = format!("/api/v1/submissions/{}", s.id);
+        OwnerLinks {
+            file: format!("{base}/file"),
+            report: format!("{base}/report"),
+            errors: if s.status == Status::Done {
+                s.protocols
+                    .iter()
+                    .map(|p| (*p, format!("{base}/errors/{}", p.as_str())))
+                    .collect()
+            } else {
+                BTreeMap::new()
+            },
+            visibility: format!("{base}/visibility"),
+            delete: base,
+        }
+    }
+}
+
 /// A submission as `viewer` may see it: a private one answers as missing to everyone but its
 /// owner and the admins, exactly like one that does not exist.
 pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !submission.is_public() && !viewer.can_see(submission.owner_id) {
+    let manages = viewer.can_see(submission.owner_id);
+    if !submission.is_public() && !manages {
         return Err(AppError::NotFound);
     }
-    let queue_position = match submission.status {
-        Status::Queued => Some(app.store.queue_position(id).await?),
-        _ => None,
+    let speed = crate::submissions::speed(app).await?;
+    let now = now_ms();
+    let (queue, eta_seconds, progress_text) = match submission.status {
+        Status::Queued => {
+            let place = app.store.queue_place(id).await?;
+            let eta = (app.store.work_ahead(id).await? + remaining(&submission)) as f64 / speed;
+            let text = format!(
+                "{}; scores expected {}",
+                wording::queue_place(place.queued_ahead, place.running),
+                wording::wait_until(eta, now)
+            );
+            (Some(place), Some(eta), Some(text))
+        }
+        Status::Running => {
+            let eta = remaining(&submission) as f64 / speed;
+            let text = if submission.work > 0 {
+                format!(
+                    "{} of {} evaluated; scores expected {}",
+                    submission.work_done.min(submission.work),
+                    wording::count(submission.work as usize, "estimate", "estimates"),
+                    wording::wait_until(eta, now)
+                )
+            } else {
+                format!("scores expected {}", wording::wait_until(eta, now))
+            };
+            (None, Some(eta), Some(text))
+        }
+        Status::Done | Status::Failed => (None, None, None),
     };
     let reports = app.store.reports_of_submission(id).await?;
     let charts = reports.iter().flat_map(crate::chart::charts).collect();
@@ -413,11 +493,101 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
     Ok(SubmissionView {
         entries,
         pinned: app.store.is_pinned(id).await?,
+        preflight_text: preflight_text(&submission),
         preflight: submission.preflight.clone(),
+        queue_position: queue.map(|q| q.queued_ahead),
+        queue,
+        publication: publishing::state(&submission),
+        progress_text,
+        eta_seconds,
+        owner: manages.then(|| OwnerLinks::of(&submission)),
         submission,
-        queue_position,
         scores: reports.into_iter().map(|r| (r.protocol, r)).collect(),
         charts,
+    })
+}
+
+/// Estimate evaluations the job still has to do.
+fn remaining(s: &SubmissionRow) -> i64 {
+    if s.work > 0 {
+        (s.work - s.work_done).max(0)
+    } else {
+        s.estimates_count * s.protocols.len() as i64
+    }
+}
+
+/// What the pre-flight check expected at upload: the work and the wait it announced.
+fn preflight_text(s: &SubmissionRow) -> String {
+    let p = &s.preflight;
+    let evaluated: Vec<String> = p
+        .estimates_evaluated
+        .iter()
+        .map(|(protocol, n)| {
+            format!(
+                "{} under {}",
+                wording::count(*n, "estimate", "estimates"),
+                protocol.as_str()
+            )
+        })
+        .collect();
+    let work = if evaluated.is_empty() {
+        wording::count(p.estimates, "estimate", "estimates")
+    } else {
+        evaluated.join(", ")
+    };
+    format!(
+        "{work} to evaluate; at upload, scores were expected after {} ({})",
+        wording::duration(p.estimated_seconds),
+        wording::utc_minute(s.created_at + (p.estimated_seconds * 1000.0).ceil() as i64)
+    )
+}
+
+/// The owner's list of their submissions, private ones included.
+#[derive(Clone, Debug, Serialize)]
+pub struct MySubmissions {
+    pub submissions: Vec<MySubmission>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct MySubmission {
+    #[serde(flatten)]
+    pub submission: SubmissionRow,
+    pub publication: String,
+    /// Per protocol, the headline score (AR for bop19, recall for eccv18).
+    pub scores: BTreeMap<ProtocolName, f64>,
+    pub url: String,
+    /// Downloads and actions.
+    pub links: OwnerLinks,
+}
+
+impl MySubmission {
+    /// The headline score under `protocol`, once evaluated.
+    pub fn score(&self, protocol: ProtocolName) -> Option<f64> {
+        self.scores.get(&protocol).copied()
+    }
+}
+
+/// Every submission of `user`, newest first, with scores, state, downloads and actions.
+pub async fn my_submissions(app: &App, user: &User) -> AppResult<MySubmissions> {
+    let rows = app.store.submissions_of_owner(user.id).await?;
+    let mut scores: BTreeMap<i64, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
+    for sc in app.store.scores_of_owner(user.id).await? {
+        scores
+            .entry(sc.submission_id)
+            .or_default()
+            .insert(sc.protocol, sc.score);
+    }
+    Ok(MySubmissions {
+        submissions: rows
+            .into_iter()
+            .map(|s| MySubmission {
+                publication: publishing::state(&s),
+                scores: scores.remove(&s.id).unwrap_or_default(),
+                url: format!("/submissions/{}", s.id),
+                links: OwnerLinks::of(&s),
+                submission: s,
+            })
+            .collect(),
     })
 }
 

@@ -304,13 +304,14 @@ fn split_choices_and_unloadable_layouts_are_explained() {
     );
 }
 
-/// Uploads `files` in one request with `fields`.
+/// Uploads `files` in one request with `fields`, published (these tests follow the public
+/// lists).
 fn upload_files(
     server: &common::Server,
     fields: &[(&str, &str)],
     files: &[PathBuf],
 ) -> reqwest::blocking::Response {
-    let mut form = multipart::Form::new();
+    let mut form = multipart::Form::new().text("visibility", "public");
     for f in files {
         form = form.file("file", f).expect("result file");
     }
@@ -522,6 +523,7 @@ fn upload_zip(
         .expect("mime");
     let form = multipart::Form::new()
         .text("method", method.to_string())
+        .text("visibility", "public")
         .part("file", part);
     client()
         .post(format!("{}/api/v1/submissions", server.base))

@@ -34,6 +34,8 @@ fn hostile_input(kind: Db) {
             format!("{script}<img src=x onerror=alert(2)>"),
         )
         .text("hardware", "\"><script>alert(3)</script>")
+        // Published: the public pages must show it harmlessly.
+        .text("visibility", "public")
         .part(
             "file",
             multipart::Part::file(&tricky)

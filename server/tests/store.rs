@@ -9,7 +9,7 @@ use std::sync::atomic::AtomicBool;
 
 use common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
-use evaluator::{Dataset, NoProgress, Report, evaluate, results::load_results};
+use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
     Hardware, MethodDetails, MethodName, Modality, TokenLabel, UserName, Visibility,
 };
@@ -17,8 +17,10 @@ use server::preflight::Preflight;
 use server::store::accounts::Counter;
 use server::store::audit::AdminAction;
 use server::store::datasets::DatasetRow;
+use server::store::errors::NewErrors;
 use server::store::methods::MethodMeta;
-use server::store::submissions::{Created, FairUse, Fault, NewSubmission, Status};
+use server::store::queue::Finished;
+use server::store::submissions::{Created, FairUse, Fault, NewSubmission, QueuePlace, Status};
 use server::store::{Store, StoreError};
 
 /// A migrated store on a fresh database of `kind`, with its URL (for raw SQL).
@@ -123,22 +125,46 @@ fn new_submission<'a>(
         estimates_count: 35,
         hardware: &f.hardware,
         preflight: &f.preflight,
+        held: false,
     }
 }
 
-fn reference_report(protocol: ProtocolName) -> Report {
+/// A finished evaluation of the reference file: its reports, with the per-estimate errors of
+/// each protocol as the worker stores them.
+fn finished(protocols: &[ProtocolName]) -> (Finished, Vec<serde_json::Value>) {
     let dataset = Dataset::load(&fixtures().join("dataset")).expect("reference dataset");
     let results = load_results(&fixtures().join("results/noisemedium_synthA-test.csv"))
         .expect("reference results");
-    evaluate(
-        &dataset,
-        &results,
-        &Protocol::named(protocol),
-        &NoProgress,
-        &AtomicBool::new(false),
-    )
-    .expect("evaluates")
-    .report
+    let mut reports = Vec::new();
+    let mut errors = Vec::new();
+    let mut first_rows = Vec::new();
+    for &p in protocols {
+        let evaluation = evaluate(
+            &dataset,
+            &results,
+            &Protocol::named(p),
+            &NoProgress,
+            &AtomicBool::new(false),
+        )
+        .expect("evaluates");
+        let rows = evaluation.error_rows();
+        let json = serde_json::to_vec(&rows).expect("json");
+        errors.push(NewErrors {
+            protocol: p,
+            rows_count: rows.len() as i64,
+            gzip: server::uploaded_file::compress(&json).expect("gzip"),
+        });
+        if first_rows.is_empty() {
+            first_rows = rows;
+        }
+        reports.push(evaluation.report);
+    }
+    let done = Finished {
+        reports,
+        errors,
+        eval_ms: 1000,
+    };
+    (done, first_rows)
 }
 
 fn datasets_stay_retired(kind: Db) {
@@ -182,10 +208,8 @@ both_databases!(datasets_stay_retired);
 fn submissions_queue_and_scores(kind: Db) {
     let dir = tempfile::tempdir().unwrap();
     let db = TestDb::new(kind, "store_lifecycle");
-    let reports = [
-        reference_report(ProtocolName::Bop19),
-        reference_report(ProtocolName::Eccv18),
-    ];
+    let (done_job, error_rows) = finished(&[ProtocolName::Bop19, ProtocolName::Eccv18]);
+    let reports = done_job.reports.clone();
     run(async {
         let (store, _) = store(kind, &db, dir.path()).await;
         let ds = store
@@ -214,8 +238,16 @@ fn submissions_queue_and_scores(kind: Db) {
         let method = store.method(row.method_id).await.unwrap().expect("method");
         assert_eq!(method.modality, Some(Modality::RgbD));
         assert_eq!(method.training_data, None);
-        assert_eq!(store.queue_position(id).await.unwrap(), 0);
-        assert_eq!(store.estimates_ahead(i64::MAX).await.unwrap(), 35);
+        assert_eq!(
+            store.queue_place(id).await.unwrap(),
+            QueuePlace {
+                queued_ahead: 0,
+                running: 0
+            }
+        );
+        // Stored without a counted work, a job counts its estimates.
+        assert_eq!(store.work_ahead(i64::MAX).await.unwrap(), 35);
+        assert_eq!(store.measured_speed().await.unwrap(), None);
 
         // The queue: claim, heartbeat, finish only while the job is the worker's own.
         assert_eq!(ds.content_hash.as_deref(), Some("c0ffee"));
@@ -265,14 +297,41 @@ fn submissions_queue_and_scores(kind: Db) {
             .unwrap()
             .expect("a job");
         assert_eq!((job.id, job.status, job.attempts), (id, Status::Running, 2));
-        assert!(store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap());
-        assert!(!store.heartbeat(id, "w2", 60_000, 0.5).await.unwrap());
-        assert!(!store.finish(id, "w2", &reports).await.unwrap());
-        assert!(store.finish(id, "w1", &reports).await.unwrap());
+        assert!(store.heartbeat(id, "w1", 60_000, 0.5, 7).await.unwrap());
+        assert!(!store.heartbeat(id, "w2", 60_000, 0.5, 9).await.unwrap());
+        assert_eq!(store.submission(id).await.unwrap().unwrap().work_done, 7);
+        assert!(!store.finish(id, "w2", &done_job).await.unwrap());
+        assert!(store.finish(id, "w1", &done_job).await.unwrap());
         // Finishing again (its first answer lost with the connection) is no second score set.
-        assert!(store.finish(id, "w1", &reports).await.unwrap());
+        assert!(store.finish(id, "w1", &done_job).await.unwrap());
         let done = store.submission(id).await.unwrap().unwrap();
         assert_eq!((done.status, done.progress), (Status::Done, 1.0));
+        // The work the evaluator did and its time: the speed waits are estimated from.
+        let work: i64 = reports.iter().map(|r| r.estimates_evaluated as i64).sum();
+        assert_eq!(
+            (done.work, done.work_done, done.eval_ms),
+            (work, work, Some(1000))
+        );
+        assert_eq!(store.measured_speed().await.unwrap(), Some(work as f64));
+        // The per-estimate errors come back typed, one set per protocol.
+        let stored = store
+            .estimate_errors(id, ProtocolName::Bop19)
+            .await
+            .unwrap()
+            .expect("stored with the scores");
+        assert_eq!(stored.rows_count as usize, error_rows.len());
+        let rows = stored.rows().unwrap();
+        assert_eq!(
+            serde_json::to_value(&rows).unwrap(),
+            serde_json::Value::Array(error_rows.clone())
+        );
+        assert!(
+            store
+                .estimate_errors(id, ProtocolName::Eccv18)
+                .await
+                .unwrap()
+                .is_some()
+        );
         assert!(!store.fail(id, "w1", "late", Fault::Service).await.unwrap());
 
         // Reports come back as they were stored, one per protocol.
@@ -574,7 +633,7 @@ both_databases!(unknown_stored_values_are_errors);
 fn board_version_follows_board_changes(kind: Db) {
     let dir = tempfile::tempdir().unwrap();
     let db = TestDb::new(kind, "store_board_version");
-    let reports = [reference_report(ProtocolName::Bop19)];
+    let (done_job, _) = finished(&[ProtocolName::Bop19]);
     run(async {
         let (store, url) = store(kind, &db, dir.path()).await;
         // Another process's store on the same database sees every change, counted or not.
@@ -629,18 +688,35 @@ fn board_version_follows_board_changes(kind: Db) {
         step!(
             false,
             "heartbeat",
-            store.heartbeat(id, "w1", 60_000, 0.5).await.unwrap()
+            store.heartbeat(id, "w1", 60_000, 0.5, 1).await.unwrap()
         );
         assert!(step!(
             false,
             "another worker's finish",
-            !store.finish(id, "w2", &reports).await.unwrap()
+            !store.finish(id, "w2", &done_job).await.unwrap()
         ));
         assert!(step!(
             true,
             "finished",
-            store.finish(id, "w1", &reports).await.unwrap()
+            store.finish(id, "w1", &done_job).await.unwrap()
         ));
+        assert!(step!(
+            true,
+            "withdrawn",
+            store.set_visibility(id, Visibility::Private).await.unwrap()
+        ));
+        assert!(step!(
+            false,
+            "held while private",
+            store.hold_publication(id).await.unwrap()
+        ));
+        assert!(store.submission(id).await.unwrap().unwrap().held);
+        assert!(step!(
+            true,
+            "published",
+            store.set_visibility(id, Visibility::Public).await.unwrap()
+        ));
+        assert!(!store.submission(id).await.unwrap().unwrap().held);
         assert!(step!(
             true,
             "hidden",

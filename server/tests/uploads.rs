@@ -30,6 +30,7 @@ fn upload_evaluate_and_rank(kind: Db) {
         ("training_data", "synthetic"),
         ("modality", "rgb-d"),
         ("hardware", "test rig, 2 cores"),
+        ("visibility", "public"),
     ];
     let r = upload_with(&server, &server.token, &meta, &file);
     assert_eq!(r.status(), 202, "{kind:?}");

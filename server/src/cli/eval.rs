@@ -21,6 +21,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::dataset_config::{SplitChoice, folder_choice};
 use crate::preflight::Preflight;
+use crate::wording::count;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -326,6 +327,10 @@ pub struct SplitArgs {
     pub targets_file: Option<String>,
 }
 
+/// Validates a result file and, with `--dataset`, pre-flights it as an upload would be. Exits
+/// 0 only for a valid file without red flags: a red flag (metres, most targets without an
+/// estimate, objects the dataset lacks) would hold publication back on the service, so a
+/// script checking files before upload stops there too.
 pub fn run_check(args: CheckArgs) -> Result<()> {
     let resolved = args
         .protocol
@@ -348,36 +353,54 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         _ => {}
     }
     let results = load_results(&args.results)?;
-    println!(
-        "{}: {} estimates for {} images, OK",
-        args.results.display(),
-        results.estimates.len(),
-        results.image_times.len().max(
-            results
-                .estimates
-                .iter()
-                .map(|e| (e.scene_id, e.im_id))
-                .collect::<std::collections::BTreeSet<_>>()
-                .len()
-        )
+    let images = results.image_times.len().max(
+        results
+            .estimates
+            .iter()
+            .map(|e| (e.scene_id, e.im_id))
+            .collect::<std::collections::BTreeSet<_>>()
+            .len(),
     );
-    if let Some(dir) = &args.dataset {
-        let dataset = load_dataset(dir, &args.results, &args.split)?;
-        // The upload pre-flight check, so the command line and the service say the same.
-        let p = Preflight::of(
-            &dataset,
-            &results,
-            &[ProtocolName::Bop19, ProtocolName::Eccv18],
-        );
-        println!(
-            "{}: {} targets, {} without an estimate; {} estimates are not for a target and would be ignored",
-            dataset.name, p.targets, p.targets_without_estimate, p.estimates_not_for_targets
-        );
-        for w in &p.warnings {
-            println!("warning: {w}");
-        }
+    println!(
+        "{}: {} for {}: a valid result file",
+        args.results.display(),
+        count(results.estimates.len(), "estimate", "estimates"),
+        count(images, "image", "images"),
+    );
+    let Some(dir) = &args.dataset else {
+        println!("no --dataset given: coverage and red flags not checked");
+        return Ok(());
+    };
+    let dataset = load_dataset(dir, &args.results, &args.split)?;
+    // The upload pre-flight check, so the command line and the service say the same.
+    let p = Preflight::of(
+        &dataset,
+        &results,
+        &[ProtocolName::Bop19, ProtocolName::Eccv18],
+    );
+    println!(
+        "{}: {}, {} without an estimate; {} not for a target and would be ignored",
+        dataset.name,
+        count(p.targets, "target", "targets"),
+        p.targets_without_estimate,
+        count(p.estimates_not_for_targets, "estimate is", "estimates are"),
+    );
+    for w in &p.warnings {
+        println!("warning: {w}");
     }
-    Ok(())
+    for f in &p.red_flags {
+        println!("red flag: {f}");
+    }
+    match p.red_flags.len() {
+        0 => {
+            println!("OK: no red flag");
+            Ok(())
+        }
+        n => bail!(
+            "{}: uploaded, its publication would be held until you confirm it",
+            count(n, "red flag", "red flags")
+        ),
+    }
 }
 
 /// `check-results` for a BOP'22 JSON file: every problem named by entry and key, the tasks the

@@ -3,26 +3,28 @@
 use std::str::FromStr;
 
 use axum::extract::multipart::MultipartRejection;
-use axum::extract::{DefaultBodyLimit, Multipart, Path, Query, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::extract::{DefaultBodyLimit, Form, FromRequest, Multipart, Path, Query, Request, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::middleware::from_fn;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use evaluator::protocol::ProtocolName;
+use serde::Deserialize;
 use serde_json::json;
 
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::board_cache::Format;
-use crate::domain::MethodForm;
+use crate::domain::{MethodForm, Visibility};
 use crate::error::{AppError, AppResult};
-use crate::methods;
 use crate::routes::boards;
 use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
+use crate::store::accounts::User;
 use crate::submissions::{Accepted, submit};
-use crate::views;
+use crate::{methods, publishing};
+use crate::{uploaded_file, views};
 
 pub fn router(max_upload: u64) -> Router<AppState> {
     Router::new()
@@ -37,9 +39,17 @@ pub fn router(max_upload: u64) -> Router<AppState> {
                     .layer(from_fn(deadlines::by_progress)),
             ),
         )
-        .route("/api/v1/submissions/{id}", get(submission))
         .route("/api/v1/submissions/{id}/pin", post(pin))
         .route("/api/v1/submissions/{id}/unpin", post(unpin))
+        .route(
+            "/api/v1/submissions/{id}",
+            get(submission).delete(delete_submission),
+        )
+        .route("/api/v1/submissions/{id}/visibility", post(visibility))
+        .route("/api/v1/submissions/{id}/file", get(file))
+        .route("/api/v1/submissions/{id}/report", get(report))
+        .route("/api/v1/submissions/{id}/errors/{protocol}", get(errors))
+        .route("/api/v1/me/submissions", get(my_submissions))
         .route("/api/v1/leaderboards/{protocol}", get(leaderboard))
         .route("/api/v1/openapi.json", get(openapi))
 }
@@ -152,6 +162,157 @@ async fn submission(
     Path(id): Path<i64>,
 ) -> AppResult<Json<views::SubmissionView>> {
     Ok(Json(views::submission(&app, id, &viewer).await?))
+}
+
+/// A change of visibility, as a form (`visibility=public&confirm=true`) or as JSON.
+#[derive(Deserialize)]
+pub struct VisibilityChange {
+    pub visibility: String,
+    /// Publish despite red flags.
+    #[serde(default)]
+    pub confirm: bool,
+}
+
+/// The body of a small request, as JSON when it says so, else as a form.
+async fn form_or_json<T: serde::de::DeserializeOwned + 'static>(request: Request) -> AppResult<T> {
+    let json = request
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if json {
+        let Json(t) = Json::<T>::from_request(request, &())
+            .await
+            .map_err(|e| AppError::BadRequest(e.body_text()))?;
+        Ok(t)
+    } else {
+        let Form(t) = Form::<T>::from_request(request, &())
+            .await
+            .map_err(|e| AppError::BadRequest(e.body_text()))?;
+        Ok(t)
+    }
+}
+
+async fn visibility(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    request: Request,
+) -> AppResult<Json<serde_json::Value>> {
+    let user = viewer.require_user()?.clone();
+    let change: VisibilityChange = form_or_json(request).await?;
+    let asked = change.visibility.trim().parse::<Visibility>()?;
+    let s = publishing::set_visibility(&app, &user, id, asked, change.confirm).await?;
+    Ok(Json(json!({
+        "id": s.id,
+        "visibility": s.visibility,
+        "held": s.held,
+        "publication": publishing::state(&s),
+    })))
+}
+
+async fn delete_submission(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<Json<serde_json::Value>> {
+    let user = viewer.require_user()?.clone();
+    publishing::delete(&app, &user, id).await?;
+    Ok(Json(json!({ "ok": true, "deleted": id })))
+}
+
+/// The owner (or an administrator); everyone else is told there is nothing here.
+fn owner_or_missing(viewer: &Viewer) -> AppResult<&User> {
+    viewer.user.as_ref().ok_or(AppError::NotFound)
+}
+
+/// The uploaded file, as it was sent: for its owner only.
+async fn file(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<Response> {
+    let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
+    let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
+        .await
+        .map_err(|e| AppError::Internal(e.to_string()))?;
+    Ok(attachment("text/csv; charset=utf-8", &s.file_name, bytes))
+}
+
+/// The reports (one per protocol, as `poseboard eval --out` writes them): for whoever may see
+/// the submission.
+async fn report(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+) -> AppResult<Response> {
+    let view = views::submission(&app, id, &viewer).await?;
+    let body = serde_json::to_vec(&view.scores)
+        .map_err(|e| AppError::Internal(format!("report JSON: {e}")))?;
+    Ok(attachment(
+        "application/json",
+        &format!("submission-{id}-report.json"),
+        body,
+    ))
+}
+
+/// Every evaluated estimate's errors under one protocol (the layout of `poseboard eval
+/// --errors-out`): for its owner only.
+async fn errors(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, protocol)): Path<(i64, String)>,
+) -> AppResult<Response> {
+    let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
+    let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
+    let stored = app
+        .store
+        .estimate_errors(s.id, protocol)
+        .await?
+        .ok_or(AppError::NotFound)?;
+    // Inflating is CPU work: off the async threads.
+    let json = tokio::task::spawn_blocking(move || stored.json())
+        .await
+        .map_err(|e| AppError::Internal(e.to_string()))??;
+    Ok(attachment(
+        "application/json",
+        &format!("submission-{id}-{}-errors.json", protocol.as_str()),
+        json,
+    ))
+}
+
+/// A download: its type, and the name a browser saves it under (plain ASCII, no quotes).
+fn attachment(content_type: &'static str, name: &str, body: Vec<u8>) -> Response {
+    let safe: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let disposition = format!("attachment; filename=\"{safe}\"");
+    let mut response = (
+        [(header::CONTENT_TYPE, HeaderValue::from_static(content_type))],
+        body,
+    )
+        .into_response();
+    if let Ok(v) = HeaderValue::from_str(&disposition) {
+        response
+            .headers_mut()
+            .insert(header::CONTENT_DISPOSITION, v);
+    }
+    response
+}
+
+async fn my_submissions(
+    State(app): State<AppState>,
+    viewer: Viewer,
+) -> AppResult<Json<views::MySubmissions>> {
+    let user = viewer.require_user()?;
+    Ok(Json(views::my_submissions(&app, user).await?))
 }
 
 /// The same for every reader, like its page: served from the board cache.

@@ -19,9 +19,8 @@ use serde::Deserialize;
 use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::board_cache::Format;
-use crate::domain::{MethodForm, Modality, ModelScope, TrainingData};
+use crate::domain::{MethodForm, Modality, ModelScope, TrainingData, Visibility};
 use crate::error::{AppError, AppResult, ErrorBody};
-use crate::methods;
 use crate::routes::boards;
 use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
@@ -29,7 +28,8 @@ use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
 use crate::store::submissions::{Fault, SubmissionRow};
 use crate::submissions;
-use crate::views::{self, BoardFilter, Leaderboard, SubmissionView};
+use crate::views::{self, BoardFilter, Leaderboard, MySubmissions, SubmissionView};
+use crate::{methods, publishing};
 
 pub fn router(max_upload: u64) -> Router<AppState> {
     Router::new()
@@ -40,6 +40,9 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/submissions/{id}", get(submission))
         .route("/submissions/{id}/pin", post(pin))
         .route("/submissions/{id}/unpin", post(unpin))
+        .route("/submissions/{id}/visibility", post(change_visibility))
+        .route("/submissions/{id}/delete", post(delete_submission))
+        .route("/me/submissions", get(my_submissions))
         .route(
             "/submit",
             get(submit_form).merge(
@@ -94,28 +97,7 @@ pub(crate) mod filters {
 
     #[askama::filter_fn]
     pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
-        let secs = ms / 1000;
-        let days = secs.div_euclid(86_400);
-        let rem = secs.rem_euclid(86_400);
-        let (y, m, d) = civil_from_days(days);
-        Ok(format!(
-            "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
-            rem / 3600,
-            rem % 3600 / 60
-        ))
-    }
-
-    /// Days since 1970-01-01 to a proleptic Gregorian date (H. Hinnant's algorithm).
-    fn civil_from_days(z: i64) -> (i64, i64, i64) {
-        let z = z + 719_468;
-        let era = z.div_euclid(146_097);
-        let doe = z.rem_euclid(146_097);
-        let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-        let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-        let mp = (5 * doy + 2) / 153;
-        let d = doy - (153 * mp + 2) / 5 + 1;
-        let m = if mp < 10 { mp + 3 } else { mp - 9 };
-        (yoe + era * 400 + i64::from(m <= 2), m, d)
+        Ok(crate::wording::utc_minute(*ms))
     }
 }
 
@@ -288,7 +270,8 @@ struct SubmissionPage {
     eccv18: Option<Report>,
     /// For an administrator's browser: the CSRF token of the moderation buttons.
     admin_csrf: Option<String>,
-    /// For its owner's (or an administrator's) browser: the CSRF token of the pin button.
+    /// For its owner's (or an administrator's) browser: the CSRF token of the pin, publish,
+    /// withdraw and delete buttons.
     owner_csrf: Option<String>,
 }
 
@@ -299,13 +282,13 @@ async fn submission(
 ) -> AppResult<SubmissionPage> {
     let view = views::submission(&app, id, &viewer).await?;
     Ok(SubmissionPage {
+        bop19: view.scores.get(&ProtocolName::Bop19).cloned(),
+        eccv18: view.scores.get(&ProtocolName::Eccv18).cloned(),
         owner_csrf: viewer
             .session
             .as_ref()
-            .filter(|_| viewer.can_see(view.submission.owner_id))
+            .filter(|_| view.owner.is_some())
             .map(|s| s.csrf_token.clone()),
-        bop19: view.scores.get(&ProtocolName::Bop19).cloned(),
-        eccv18: view.scores.get(&ProtocolName::Eccv18).cloned(),
         view,
         admin_csrf: viewer
             .session
@@ -313,6 +296,58 @@ async fn submission(
             .filter(|s| s.user.is_admin)
             .map(|s| s.csrf_token.clone()),
     })
+}
+
+#[derive(Deserialize)]
+struct VisibilityForm {
+    #[serde(default)]
+    csrf: String,
+    visibility: String,
+    #[serde(default)]
+    confirm: bool,
+}
+
+/// The publish and withdraw buttons of a submission's page.
+async fn change_visibility(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<VisibilityForm>,
+) -> AppResult<Response> {
+    let user = viewer.check_csrf(&f.csrf)?.clone();
+    let asked = f.visibility.trim().parse::<Visibility>()?;
+    publishing::set_visibility(&app, &user, id, asked, f.confirm).await?;
+    Ok(Redirect::to(&format!("/submissions/{id}")).into_response())
+}
+
+/// The delete button (which asks first) of a submission's page and of the owner's list.
+async fn delete_submission(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let user = viewer.check_csrf(&f.csrf)?.clone();
+    publishing::delete(&app, &user, id).await?;
+    Ok(Redirect::to("/me/submissions").into_response())
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "my_submissions.html")]
+struct MySubmissionsPage {
+    list: MySubmissions,
+    csrf: String,
+}
+
+async fn my_submissions(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    let Some(user) = viewer.user.as_ref().filter(|_| viewer.session.is_some()) else {
+        return Ok(Redirect::to("/login?next=/me/submissions").into_response());
+    };
+    Ok(MySubmissionsPage {
+        list: views::my_submissions(&app, user).await?,
+        csrf: viewer.csrf_token(),
+    }
+    .into_response())
 }
 
 #[derive(Template, WebTemplate, Default)]
@@ -355,8 +390,15 @@ async fn submit(
     // token, which travels in the body, is checked once read.
     viewer.require_user()?;
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
-    let (fields, files) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
+    let (mut fields, files) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
     let owner = viewer.check_csrf(&fields.csrf)?.clone();
+    // The form's "publish when evaluated" box: a browser sends it only when ticked.
+    fields.visibility = if fields.publish.is_empty() {
+        "private"
+    } else {
+        "public"
+    }
+    .to_string();
     let typed = SubmitPage {
         method: fields.method.clone(),
         dataset: fields.dataset.clone(),

@@ -36,6 +36,9 @@ pub struct Fields {
     pub modality: String,
     pub hardware: String,
     pub visibility: String,
+    /// The form's "publish when evaluated" box (sent only when ticked); the API reads
+    /// `visibility` instead.
+    pub publish: String,
     /// The CSRF token of a browser form (the API authenticates by token instead).
     pub csrf: String,
 }
@@ -113,6 +116,7 @@ pub async fn read_upload(
             "modality" => &mut fields.modality,
             "hardware" => &mut fields.hardware,
             "visibility" => &mut fields.visibility,
+            "publish" => &mut fields.publish,
             "csrf" => &mut fields.csrf,
             _ => {
                 // Unknown fields are drained and ignored.

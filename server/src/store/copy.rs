@@ -25,6 +25,7 @@ const TABLES: &[&str] = &[
     "scores",
     "object_scores",
     "entry_pins",
+    "estimate_errors",
     "api_tokens",
     "sessions",
     "audit_log",

@@ -8,9 +8,21 @@ use evaluator::protocol::ProtocolName;
 use sqlx::Row;
 
 use super::board_version;
+use super::errors::{self, NewErrors};
 use super::submissions::{Fault, SubmissionRow};
 use super::{Backend, Store, StoreError, StoreResult};
 use crate::clock::now_ms;
+
+/// A finished evaluation, as [`Store::finish`] stores it.
+pub struct Finished {
+    /// One report per protocol.
+    pub reports: Vec<Report>,
+    /// The per-estimate errors of each protocol.
+    pub errors: Vec<NewErrors>,
+    /// How long the evaluation took: with the estimates it evaluated, the speed of this
+    /// service that waiting times are estimated from.
+    pub eval_ms: i64,
+}
 
 impl Store {
     /// Takes the oldest queued submission, or one whose worker's lease expired, for `worker`
@@ -48,7 +60,7 @@ impl Store {
         };
         let sql = format!(
             "UPDATE submissions SET status = 'running', worker = $1, lease_until = $2, \
-             attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = 0 \
+             attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = 0, work_done = 0 \
              WHERE id = (SELECT id FROM submissions WHERE (status = 'queued' \
              OR (status = 'running' AND lease_until < $3)){skipped} ORDER BY id LIMIT 1{lock}) \
              RETURNING id"
@@ -67,20 +79,23 @@ impl Store {
         }
     }
 
-    /// Extends the lease and records progress; false when the job is no longer this worker's.
+    /// Extends the lease and records progress (the fraction done, and the estimate
+    /// evaluations done); false when the job is no longer this worker's.
     pub async fn heartbeat(
         &self,
         id: i64,
         worker: &str,
         lease_ms: i64,
         progress: f64,
+        work_done: i64,
     ) -> StoreResult<bool> {
         let done = sqlx::query(
-            "UPDATE submissions SET lease_until = $1, progress = $2 \
-             WHERE id = $3 AND worker = $4 AND status = 'running'",
+            "UPDATE submissions SET lease_until = $1, progress = $2, work_done = $3 \
+             WHERE id = $4 AND worker = $5 AND status = 'running'",
         )
         .bind(now_ms() + lease_ms)
         .bind(progress)
+        .bind(work_done)
         .bind(id)
         .bind(worker)
         .execute(&self.pool)
@@ -88,20 +103,25 @@ impl Store {
         Ok(done.rows_affected() == 1)
     }
 
-    /// Stores the scores and marks the submission done, in one transaction that only commits
-    /// if the job is still this worker's: a job taken over after a lost lease never ends up
-    /// with two score sets. The same transaction bumps the board version. (A failed job needs
-    /// no bump: it was running, so no board showed it.)
-    pub async fn finish(&self, id: i64, worker: &str, reports: &[Report]) -> StoreResult<bool> {
+    /// Stores the scores and the per-estimate errors and marks the submission done, in one
+    /// transaction that only commits if the job is still this worker's: a job taken over after
+    /// a lost lease never ends up with two score sets. The same transaction bumps the board
+    /// version. (A failed job needs no bump: it was running, so no board showed it.)
+    pub async fn finish(&self, id: i64, worker: &str, finished: &Finished) -> StoreResult<bool> {
+        let reports = &finished.reports;
+        let work: i64 = reports.iter().map(|r| r.estimates_evaluated as i64).sum();
         let mut tx = self.write_transaction().await?;
         let now = now_ms();
         let updated = sqlx::query(
             "UPDATE submissions SET status = 'done', progress = 1, finished_at = $1, \
-             lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2 \
-             WHERE id = $3 AND worker = $4 AND status = 'running'",
+             lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2, \
+             work = $3, work_done = $3, eval_ms = $4 \
+             WHERE id = $5 AND worker = $6 AND status = 'running'",
         )
         .bind(now)
         .bind(evaluator::report::EVALUATOR_VERSION)
+        .bind(work)
+        .bind(finished.eval_ms)
         .bind(id)
         .bind(worker)
         .execute(&mut *tx)
@@ -124,6 +144,7 @@ impl Store {
             .bind(id)
             .execute(&mut *tx)
             .await?;
+        errors::replace(&mut tx, id, &finished.errors, now).await?;
         for report in reports {
             let loc = report.localization.as_ref();
             let (time_avg, recall) = match report.protocol {
@@ -213,7 +234,7 @@ impl Store {
     pub async fn release(&self, id: i64, worker: &str) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
-             progress = 0, attempts = attempts - 1, \
+             progress = 0, work_done = 0, attempts = attempts - 1, \
              started_at = CASE WHEN attempts <= 1 THEN NULL ELSE started_at END \
              WHERE id = $1 AND worker = $2 AND status = 'running'",
         )
@@ -229,7 +250,7 @@ impl Store {
     pub async fn requeue(&self, id: i64, worker: &str, error: &str) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
-             progress = 0, error = $1 WHERE id = $2 AND worker = $3 AND status = 'running'",
+             progress = 0, work_done = 0, error = $1 WHERE id = $2 AND worker = $3 AND status = 'running'",
         )
         .bind(error)
         .bind(id)

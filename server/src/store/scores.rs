@@ -99,6 +99,20 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
 }
 
 impl Store {
+    /// The headline scores of every submission of `owner`, by submission, then protocol.
+    pub async fn scores_of_owner(&self, owner: i64) -> StoreResult<Vec<ScoreRow>> {
+        let rows = sqlx::query(
+            "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, \
+             sc.ar_vsd, sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, \
+             sc.estimates_ignored FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
+             WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol",
+        )
+        .bind(owner)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(score).collect()
+    }
+
     /// The reports of a submission, one per protocol it was evaluated under.
     pub async fn reports_of_submission(&self, id: i64) -> StoreResult<Vec<Report>> {
         let rows = sqlx::query(

@@ -118,6 +118,14 @@ pub struct SubmissionRow {
     pub owner_id: Option<i64>,
     /// Hidden by an administrator: shown to its owner and the administrators only.
     pub hidden: bool,
+    /// Its owner asked for publication, but the pre-flight's red flags hold it back until
+    /// they confirm: private meanwhile.
+    pub held: bool,
+    /// Estimate evaluations the job takes (over all its protocols), and how many are done.
+    pub work: i64,
+    pub work_done: i64,
+    /// How long the evaluation took, once done.
+    pub eval_ms: Option<i64>,
     #[serde(skip)]
     pub preflight: Preflight,
 }
@@ -145,6 +153,17 @@ pub struct NewSubmission<'a> {
     pub estimates_count: i64,
     pub hardware: &'a Hardware,
     pub preflight: &'a Preflight,
+    /// Publication asked for but held back by red flags.
+    pub held: bool,
+}
+
+/// Where a queued submission stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct QueuePlace {
+    /// Queued submissions that will be evaluated before it.
+    pub queued_ahead: i64,
+    /// Submissions being evaluated now.
+    pub running: i64,
 }
 
 /// A fair-use limit: at most `limit` submissions per user and dataset since `since` (epoch ms).
@@ -203,7 +222,7 @@ pub(crate) const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method
     d.name AS dataset, s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, \
     s.estimates_count, s.status, s.progress, s.error, s.fault, s.attempts, s.created_at, \
     s.started_at, s.finished_at, s.evaluator_version, s.hardware, s.owner_id, s.hidden, \
-    s.preflight_json \
+    s.held, s.work, s.work_done, s.eval_ms, s.preflight_json \
     FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
 
 pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
@@ -243,6 +262,10 @@ pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
         hardware: row.try_get("hardware")?,
         owner_id: row.try_get("owner_id")?,
         hidden: row.try_get::<i64, _>("hidden")? != 0,
+        held: row.try_get::<i64, _>("held")? != 0,
+        work: row.try_get("work")?,
+        work_done: row.try_get("work_done")?,
+        eval_ms: row.try_get("eval_ms")?,
         preflight,
     })
 }
@@ -355,10 +378,31 @@ impl Store {
         Ok(row.try_get::<i64, _>("n")? > 0)
     }
 
-    /// How many submissions wait before this one (0 = it is next or running).
-    pub async fn queue_position(&self, id: i64) -> StoreResult<i64> {
+    /// Where submission `id` stands in the queue: the queued ones before it, and the running
+    /// ones (other than itself).
+    pub async fn queue_place(&self, id: i64) -> StoreResult<QueuePlace> {
         let row = sqlx::query(
-            "SELECT COUNT(*) AS n FROM submissions WHERE status = 'queued' AND id < $1",
+            "SELECT CAST(COALESCE(SUM(CASE WHEN status = 'queued' AND id < $1 THEN 1 ELSE 0 END), 0) AS BIGINT) AS queued, \
+             CAST(COALESCE(SUM(CASE WHEN status = 'running' AND id <> $1 THEN 1 ELSE 0 END), 0) AS BIGINT) AS running \
+             FROM submissions WHERE status IN ('queued', 'running')",
+        )
+        .bind(id)
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(QueuePlace {
+            queued_ahead: row.try_get("queued")?,
+            running: row.try_get("running")?,
+        })
+    }
+
+    /// Estimate evaluations still to do before submission `id` can start: what is left of
+    /// the running jobs and all of the queued ones before it (rows stored before the work was
+    /// counted count their estimates).
+    pub async fn work_ahead(&self, id: i64) -> StoreResult<i64> {
+        let row = sqlx::query(
+            "SELECT CAST(COALESCE(SUM(CASE WHEN work > 0 THEN work - work_done \
+             ELSE estimates_count END), 0) AS BIGINT) AS n FROM submissions \
+             WHERE (status = 'queued' AND id < $1) OR (status = 'running' AND id <> $1)",
         )
         .bind(id)
         .fetch_one(&self.pool)
@@ -366,16 +410,29 @@ impl Store {
         Ok(row.try_get("n")?)
     }
 
-    /// Estimates waiting or being evaluated before submission `id`, for time estimates.
-    pub async fn estimates_ahead(&self, id: i64) -> StoreResult<i64> {
+    /// Estimate evaluations per second measured on this service: over the last 20 jobs that
+    /// finished with a measured time. `None` before the first.
+    pub async fn measured_speed(&self) -> StoreResult<Option<f64>> {
         let row = sqlx::query(
-            "SELECT CAST(COALESCE(SUM(estimates_count), 0) AS BIGINT) AS n FROM submissions \
-             WHERE status IN ('queued', 'running') AND id < $1",
+            "SELECT CAST(COALESCE(SUM(work), 0) AS BIGINT) AS work, \
+             CAST(COALESCE(SUM(eval_ms), 0) AS BIGINT) AS ms FROM (SELECT work, eval_ms \
+             FROM submissions WHERE status = 'done' AND eval_ms > 0 AND work > 0 \
+             ORDER BY finished_at DESC LIMIT 20) recent",
         )
-        .bind(id)
         .fetch_one(&self.pool)
         .await?;
-        Ok(row.try_get("n")?)
+        let (work, ms): (i64, i64) = (row.try_get("work")?, row.try_get("ms")?);
+        Ok((work > 0 && ms > 0).then(|| work as f64 * 1000.0 / ms as f64))
+    }
+
+    /// Every submission of `owner`, private and hidden ones included, newest first.
+    pub async fn submissions_of_owner(&self, owner: i64) -> StoreResult<Vec<SubmissionRow>> {
+        let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.owner_id = $1 ORDER BY s.id DESC");
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(owner)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(submission).collect()
     }
 
     /// Hides or shows a submission; false when there is no such submission.
@@ -390,10 +447,22 @@ impl Store {
             .await
     }
 
-    /// Makes a submission public or private; false when there is no such submission.
+    /// Makes a submission public or private, which ends any hold on its publication; false
+    /// when there is no such submission.
     pub async fn set_visibility(&self, id: i64, visibility: Visibility) -> StoreResult<bool> {
+        self.set_publication(id, visibility == Visibility::Public, false)
+            .await
+    }
+
+    /// Keeps a submission private with its publication held back for red flags; false when
+    /// there is no such submission.
+    pub async fn hold_publication(&self, id: i64) -> StoreResult<bool> {
+        self.set_publication(id, false, true).await
+    }
+
+    async fn set_publication(&self, id: i64, public: bool, held: bool) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
-        let public = i64::from(visibility == Visibility::Public);
+        let (public, held) = (i64::from(public), i64::from(held));
         let exists = sqlx::query("SELECT public FROM submissions WHERE id = $1")
             .bind(id)
             .fetch_optional(&mut *tx)
@@ -403,13 +472,12 @@ impl Store {
             return Ok(false);
         };
         let changed = row.try_get::<i64, _>("public")? != public;
-        if changed {
-            sqlx::query("UPDATE submissions SET public = $1 WHERE id = $2")
-                .bind(public)
-                .bind(id)
-                .execute(&mut *tx)
-                .await?;
-        }
+        sqlx::query("UPDATE submissions SET public = $1, held = $2 WHERE id = $3")
+            .bind(public)
+            .bind(held)
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
         // A published or withdrawn submission enters or leaves the boards.
         self.commit_board_change(tx, changed).await?;
         Ok(true)
@@ -420,7 +488,7 @@ impl Store {
     pub async fn rerun(&self, id: i64) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let done = sqlx::query(
-            "UPDATE submissions SET status = 'queued', progress = 0, attempts = 0, error = NULL, \
+            "UPDATE submissions SET status = 'queued', progress = 0, work_done = 0, attempts = 0, error = NULL, \
              fault = NULL, worker = NULL, lease_until = NULL WHERE id = $1 AND status IN ('done', 'failed')",
         )
         .bind(id)
@@ -431,7 +499,8 @@ impl Store {
             .await
     }
 
-    /// Deletes a submission and its scores; `None` when there is no such submission.
+    /// Deletes a submission with its scores and errors (and its file, unless another
+    /// submission has the same); `None` when there is no such submission.
     pub async fn delete_submission(&self, id: i64) -> StoreResult<Option<Deleted>> {
         let mut tx = self.write_transaction().await?;
         let Some(row) = sqlx::query("SELECT file_sha256 FROM submissions WHERE id = $1")
@@ -443,14 +512,14 @@ impl Store {
             return Ok(None);
         };
         let sha: String = row.try_get("file_sha256")?;
-        sqlx::query("DELETE FROM scores WHERE submission_id = $1")
-            .bind(id)
-            .execute(&mut *tx)
-            .await?;
-        sqlx::query("DELETE FROM entry_pins WHERE submission_id = $1")
-            .bind(id)
-            .execute(&mut *tx)
-            .await?;
+        for table in ["estimate_errors", "entry_pins", "scores"] {
+            // `table` comes from the list above, never from the request.
+            let sql = format!("DELETE FROM {table} WHERE submission_id = $1");
+            sqlx::query(sqlx::AssertSqlSafe(sql))
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+        }
         sqlx::query("DELETE FROM submissions WHERE id = $1")
             .bind(id)
             .execute(&mut *tx)
@@ -556,7 +625,8 @@ async fn create_one(
     let id: i64 = sqlx::query(
         "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
          file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
-         owner_id) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12) RETURNING id",
+         owner_id, held, work) \
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, 'queued', $11, $12, $13, $14) RETURNING id",
     )
     .bind(method_id)
     .bind(new.dataset_id)
@@ -570,6 +640,8 @@ async fn create_one(
     .bind(preflight)
     .bind(now)
     .bind(new.owner_id)
+    .bind(i64::from(new.held))
+    .bind(new.preflight.work())
     .fetch_one(&mut **tx)
     .await?
     .try_get("id")?;

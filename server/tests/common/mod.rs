@@ -265,7 +265,8 @@ pub fn client() -> Client {
         .expect("client")
 }
 
-/// Uploads `file` as the account `tester`, optionally for one `protocol`.
+/// Uploads `file` as the account `tester`, optionally for one `protocol`, asking for it to be
+/// published (the API's default is private; the tests using this follow the public boards).
 pub fn upload(
     server: &Server,
     method: &str,
@@ -273,7 +274,11 @@ pub fn upload(
     file: &Path,
     protocol: Option<&str>,
 ) -> reqwest::blocking::Response {
-    let mut fields = vec![("method", method), ("dataset", dataset)];
+    let mut fields = vec![
+        ("method", method),
+        ("dataset", dataset),
+        ("visibility", "public"),
+    ];
     if let Some(p) = protocol {
         fields.push(("protocol", p));
     }
