@@ -30,3 +30,4 @@ pub mod store;
 pub mod submissions;
 pub mod uploaded_file;
 pub mod views;
+pub mod wording;
