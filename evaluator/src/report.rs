@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::dataset::Dataset;
-use crate::matching::EstimateErrors;
+use crate::matching::{EstimateErrors, NTop};
 use crate::protocol::{Column, ErrorKind, Protocol, ProtocolName, normalised_error};
 use crate::results::Results;
 use crate::score::{Scored, ScoredImage, Scores, localization_scores};
@@ -119,6 +119,7 @@ pub struct ThresholdCurve {
 pub struct VisibBin {
     pub visib_from: f64,
     pub visib_to: f64,
+    /// Target instances in the bin: over all bins, the recall's `targets_count`.
     pub instances: usize,
     pub matched: usize,
     pub recall: f64,
@@ -265,7 +266,7 @@ pub(crate) fn build(
                 });
             if let Some((_, scored)) = main {
                 report.localization = Some(scored.scores.clone());
-                report.recall_vs_visib = visib_bins(images, &scored.matched);
+                report.recall_vs_visib = visib_bins(images, &scored.matched, protocol.n_top);
             }
             report.average_time_per_target = time_per_target(results, images);
         }
@@ -351,16 +352,29 @@ fn grouped_average_recall(
     out.into_iter().map(|(id, v)| (id, mean(&v))).collect()
 }
 
-fn visib_bins(images: &[ScoredImage], matched: &[Vec<bool>]) -> Vec<VisibBin> {
+/// The instances the protocol targets, by visible fraction: those that count in the recall
+/// (`targets_count`), so the bins add up to its targets and true positives. Per image and
+/// object, those are its valid instances (visible at least `visib_gt_min`) up to n_top of them,
+/// as in the recall: the matched ones, then the most visible of the rest (ties: lower gt id).
+fn visib_bins(images: &[ScoredImage], matched: &[Vec<bool>], n_top: NTop) -> Vec<VisibBin> {
     let mut counts = [(0usize, 0usize); 10];
     for (im, m) in images.iter().zip(matched) {
-        for (g, &hit) in im.gts.iter().zip(m) {
-            if !g.2 {
-                continue;
+        let mut per_obj: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+        for (gt_id, g) in im.gts.iter().enumerate().filter(|(_, g)| g.2) {
+            per_obj.entry(g.0).or_default().push(gt_id);
+        }
+        for mut gt_ids in per_obj.into_values() {
+            let targets = match n_top {
+                NTop::Top(n) => gt_ids.len().min(n as usize),
+                NTop::InstCount | NTop::All => gt_ids.len(),
+            };
+            // Stable: equal keys keep the lower gt id first.
+            gt_ids.sort_by(|&a, &b| m[b].cmp(&m[a]).then(im.gts[b].1.total_cmp(&im.gts[a].1)));
+            for &gt_id in &gt_ids[..targets] {
+                let bin = ((im.gts[gt_id].1 * 10.0).floor().max(0.0) as usize).min(9);
+                counts[bin].0 += 1;
+                counts[bin].1 += m[gt_id] as usize;
             }
-            let bin = ((g.1 * 10.0).floor().max(0.0) as usize).min(9);
-            counts[bin].0 += 1;
-            counts[bin].1 += hit as usize;
         }
     }
     counts

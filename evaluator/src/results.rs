@@ -286,8 +286,9 @@ struct Parser {
     blank_run: Option<(u64, u64)>,
     problems: Problems,
     estimates: Vec<Estimate>,
-    /// Per image: the first non-negative time and its line.
-    first_times: BTreeMap<(u32, u32), (f64, u64)>,
+    /// Per image: the first non-negative time, its line, and its text as written (a problem
+    /// quotes the file, not a float's re-rendering of it).
+    first_times: BTreeMap<(u32, u32), (f64, u64, String)>,
     times_available: bool,
 }
 
@@ -313,7 +314,7 @@ impl Parser {
             image_times: self
                 .first_times
                 .into_iter()
-                .map(|(key, (t, _))| (key, t))
+                .map(|(key, (t, _, _))| (key, t))
                 .collect(),
             times_available: self.times_available,
         })
@@ -395,7 +396,7 @@ impl Parser {
         let time = self.scalar(n, Field::Time, fields[6]);
 
         if let (Some(scene_id), Some(im_id), Some(time)) = (scene_id, im_id, time) {
-            self.check_time(n, scene_id, im_id, time);
+            self.check_time(n, scene_id, im_id, time, fields[6]);
         }
 
         if let (
@@ -522,28 +523,28 @@ impl Parser {
 
     /// bop_toolkit's `check_consistent_timings`: a negative time means "not given" (and no
     /// average time); the others must agree within 0.001 s with the first one of their image.
-    fn check_time(&mut self, n: u64, scene_id: u32, im_id: u32, time: f64) {
+    fn check_time(&mut self, n: u64, scene_id: u32, im_id: u32, time: f64, text: &str) {
         if time < 0.0 {
             self.times_available = false;
             return;
         }
         match self.first_times.get(&(scene_id, im_id)) {
-            Some(&(first_time, first_line)) => {
+            Some((first_time, first_line, first_text)) => {
                 if (first_time - time).abs() > TIME_TOLERANCE {
-                    self.problems.push(
-                        n,
-                        ProblemKind::InconsistentTime {
-                            scene_id,
-                            im_id,
-                            time,
-                            first_time,
-                            first_line,
-                        },
-                    );
+                    let kind = ProblemKind::InconsistentTime {
+                        scene_id,
+                        im_id,
+                        time: quote(trim_py(text)),
+                        first_time: first_text.clone(),
+                        first_line: *first_line,
+                    };
+                    self.problems.push(n, kind);
                 }
             }
             None => {
-                self.first_times.insert((scene_id, im_id), (time, n));
+                let written = quote(trim_py(text));
+                self.first_times
+                    .insert((scene_id, im_id), (time, n, written));
             }
         }
     }
@@ -1086,6 +1087,20 @@ mod tests {
             only_problem(&s),
             "line 3: time 1.3762 for scene 1, image 0 differs from 0.8762 given on line 2 \
              (the time must be the same for every estimate of an image)"
+        );
+    }
+
+    #[test]
+    fn inconsistent_times_are_quoted_as_written() {
+        let s = with_header(&format!(
+            "{}{}",
+            row(1, 0, 1, "0.5", IDENTITY, "0 0 1", " 2.50E+0"),
+            row(1, 0, 2, "0.5", IDENTITY, "0 0 1", "1_0.0")
+        ));
+        let m = only_problem(&s);
+        assert!(
+            m.starts_with("line 3: time 1_0.0 for scene 1, image 0 differs from 2.50E+0 given"),
+            "{m}"
         );
     }
 

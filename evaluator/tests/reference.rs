@@ -145,6 +145,35 @@ fn eccv18_recalls_match_bop_toolkit_in_both_visibility_modes() {
     }
 }
 
+/// The recall-vs-visibility curve counts what the recall counts: bop_toolkit's targets (valid
+/// instances, at most n_top per image and object) and its true positives, none of them less
+/// visible than visib_gt_min.
+#[test]
+fn the_visibility_curve_counts_the_protocols_targets() {
+    for name in RESULT_NAMES {
+        let protocol = eccv18(VisibMode::Bop19);
+        let ev = run(name, &protocol);
+        let exp = expected(name, "ecc18_bop19vis.json");
+        let bins = &ev.report.recall_vs_visib;
+        assert_eq!(bins.len(), 10, "{name}");
+        let instances: usize = bins.iter().map(|b| b.instances).sum();
+        let matched: usize = bins.iter().map(|b| b.matched).sum();
+        assert_eq!(
+            instances as f64,
+            num(&exp["targets_count"]),
+            "{name}: targets"
+        );
+        assert_eq!(
+            matched as f64,
+            num(&exp["tp_count"]),
+            "{name}: true positives"
+        );
+        for b in bins.iter().filter(|b| b.visib_to <= protocol.visib_gt_min) {
+            assert_eq!(b.instances, 0, "{name}: a bin below visib_gt_min");
+        }
+    }
+}
+
 #[test]
 fn bop19_average_recalls_match_bop_toolkit() {
     for name in RESULT_NAMES {

@@ -3,6 +3,7 @@
 //! defaults need fontconfig).
 
 use evaluator::Report;
+use evaluator::report::VisibBin;
 
 /// Plot area inside the SVG viewBox (0 0 360 240).
 const LEFT: f64 = 44.0;
@@ -33,6 +34,11 @@ pub struct Chart {
     pub series: Vec<Series>,
     pub x_ticks: Vec<Tick>,
     pub y_ticks: Vec<Tick>,
+    /// Above a point, how many instances it stands for (a recall over 3 instances is not one
+    /// over 300): `pos` is the x of the point.
+    pub counts: Vec<Tick>,
+    /// What the counts count, for the caption (empty when there are none).
+    pub counts_note: String,
 }
 
 fn sx(x: f64, max: f64) -> f64 {
@@ -63,20 +69,36 @@ pub fn charts(report: &Report) -> Vec<Chart> {
             lines,
         ));
     }
-    let bins: Vec<(f64, f64)> = report
+    let bins: Vec<&VisibBin> = report
         .recall_vs_visib
         .iter()
         .filter(|b| b.instances > 0)
-        // Visibility bins are plotted at their centres.
-        .map(|b| ((b.visib_from + b.visib_to) / 2.0, b.recall))
         .collect();
     if !bins.is_empty() {
-        out.push(chart(
+        // Visibility bins are plotted at their centres.
+        let centre = |b: &VisibBin| (b.visib_from + b.visib_to) / 2.0;
+        let mut c = chart(
             "Recall vs visible fraction of the target",
             "visible fraction",
             1.0,
-            vec![("recall".to_string(), bins)],
-        ));
+            vec![(
+                "recall".to_string(),
+                bins.iter().map(|b| (centre(b), b.recall)).collect(),
+            )],
+        );
+        c.counts = bins
+            .iter()
+            .map(|b| Tick {
+                pos: sx(centre(b), 1.0),
+                label: b.instances.to_string(),
+            })
+            .collect();
+        let total: usize = bins.iter().map(|b| b.instances).sum();
+        c.counts_note = format!(
+            "numbers above: target instances per bin ({} in all, visible at least {})",
+            total, report.parameters.visib_gt_min
+        );
+        out.push(c);
     }
     for curve in &report.recall_vs_threshold {
         let (title, x_label) = match curve.error.as_str() {
@@ -147,6 +169,8 @@ fn chart(title: &str, x_label: &str, x_max: f64, lines: Vec<Line>) -> Chart {
                 }
             })
             .collect(),
+        counts: Vec::new(),
+        counts_note: String::new(),
     }
 }
 

@@ -59,6 +59,10 @@ pub struct Config {
     /// Do not generate the demo dataset and submissions.
     #[arg(long, env = "POSEBOARD_NO_DEMO")]
     pub no_demo: bool,
+    /// The address users reach the service at (`https://poseboard.example.org`), for the
+    /// examples the pages show; default: the scheme and host of each request.
+    #[arg(long, env = "POSEBOARD_PUBLIC_URL")]
+    pub public_url: Option<String>,
     /// `json`: one JSON object per log line, for log collectors.
     #[arg(long, env = "POSEBOARD_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     pub log_format: LogFormat,

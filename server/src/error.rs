@@ -45,7 +45,7 @@ pub enum AppError {
         message: String,
         problems: Vec<LineProblem>,
     },
-    #[error("the upload is larger than the limit of {limit} bytes")]
+    #[error("the upload is larger than the limit of {} ({limit} bytes)", size(*limit))]
     TooLarge { limit: u64 },
     /// The client took too long: a request past its time, or an upload that stopped progressing.
     #[error("{0}")]
@@ -67,6 +67,19 @@ pub struct ErrorBody {
     /// For 429: when the next request is allowed (epoch milliseconds).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub retry_at: Option<i64>,
+    /// For 413: the largest body accepted, in bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub limit_bytes: Option<u64>,
+}
+
+/// A size in bytes as people say it: `64 MiB`, `512 KiB`, `100 bytes`.
+fn size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 20 && b % (1 << 20) == 0 => format!("{} MiB", b >> 20),
+        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / f64::from(1 << 20)),
+        b if b >= 1 << 10 && b % (1 << 10) == 0 => format!("{} KiB", b >> 10),
+        b => format!("{b} bytes"),
+    }
 }
 
 impl From<StoreError> for AppError {
@@ -118,10 +131,15 @@ impl AppError {
             AppError::TooMany { retry_at, .. } => Some(*retry_at),
             _ => None,
         };
+        let limit_bytes = match self {
+            AppError::TooLarge { limit } => Some(*limit),
+            _ => None,
+        };
         ErrorBody {
             error,
             problems,
             retry_at,
+            limit_bytes,
         }
     }
 }

@@ -1,8 +1,14 @@
-//! The OpenAPI 3.1 description of `/api/v1`, served at `/api/v1/openapi.json`.
+//! The OpenAPI 3.1 description of `/api/v1`, served at `/api/v1/openapi.json` and shown as the
+//! HTML page `/docs/api`, both from [`document`], so the two cannot disagree.
 
 use serde_json::{Value, json};
 
+/// The description, with the error answers every operation shares (see [`with_error_answers`]).
 pub fn document() -> Value {
+    with_error_answers(paths())
+}
+
+fn paths() -> Value {
     let id_param =
         json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
     json!({
@@ -14,9 +20,12 @@ pub fn document() -> Value {
         },
         "components": {
             "securitySchemes": { "bearer": { "type": "http", "scheme": "bearer", "description": "a personal API token from /account" } },
-            "schemas": { "VisibilityChange": { "type": "object", "required": ["visibility"], "properties": {
-                "visibility": { "type": "string", "enum": ["public", "private"] },
-                "confirm": { "type": "boolean", "default": false, "description": "publish despite red flags" } } } }
+            "schemas": {
+                "Error": error_schema(),
+                "VisibilityChange": { "type": "object", "required": ["visibility"], "properties": {
+                    "visibility": { "type": "string", "enum": ["public", "private"] },
+                    "confirm": { "type": "boolean", "default": false, "description": "publish despite red flags" } } }
+            }
         },
         "paths": {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
@@ -81,11 +90,10 @@ pub fn document() -> Value {
                         "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
                         "200": { "description": "every file was already submitted for this method (same dataset and protocols): the existing submissions, not evaluated again, with the visibility asked for if one was given" },
                         "408": { "description": "the upload stalled: its body must keep delivering a minimum (by default 64 KiB every 20 s), however long the whole upload takes" },
-                        "429": { "description": "over the fair-use limit of submissions per dataset: {error, retry_at}, and a Retry-After header" },
                         "400": { "description": "a missing or bad field" },
-                        "413": { "description": "the file is larger than the limit" },
+                        "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
                         "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
-                        "429": { "description": "over the fair-use limit for a dataset: nothing of the upload is submitted; {error, retry_at}" }
+                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
                     }
                 }
             },
@@ -123,4 +131,75 @@ pub fn document() -> Value {
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
         }
     })
+}
+
+/// The body of every error answer (`crate::error::ErrorBody`).
+fn error_schema() -> Value {
+    json!({
+        "type": "object",
+        "required": ["error"],
+        "properties": {
+            "error": { "type": "string", "description": "what went wrong, in a sentence; for 413 and 429 it states the limit" },
+            "problems": { "type": "array", "description": "422: every problem of the upload", "items": {
+                "type": "object", "required": ["line", "message"],
+                "properties": {
+                    "file": { "type": "string", "description": "the file, when an upload holds several" },
+                    "line": { "type": "integer", "description": "0: the file as a whole" },
+                    "message": { "type": "string" }
+                } } },
+            "retry_at": { "type": "integer", "description": "429: when the next request is allowed, epoch milliseconds (also the Retry-After header, in seconds)" },
+            "limit_bytes": { "type": "integer", "description": "413: the largest upload accepted" }
+        }
+    })
+}
+
+/// Adds what every operation of its kind answers, unless it says so itself: 401 where a token
+/// is needed, 404 where the path names something, 413 and 422 where a body is uploaded; and
+/// gives every 4xx answer the error body's schema.
+fn with_error_answers(mut doc: Value) -> Value {
+    let Some(paths) = doc.get_mut("paths").and_then(Value::as_object_mut) else {
+        return doc;
+    };
+    for (path, item) in paths.iter_mut() {
+        let Some(operations) = item.as_object_mut() else {
+            continue;
+        };
+        for op in operations.values_mut() {
+            let secured = op.get("security").is_some();
+            let uploads = op.get("requestBody").is_some();
+            let Some(responses) = op.get_mut("responses").and_then(Value::as_object_mut) else {
+                continue;
+            };
+            let mut add = |code: &str, description: &str| {
+                responses
+                    .entry(code)
+                    .or_insert_with(|| json!({ "description": description }));
+            };
+            if secured {
+                add("401", "no valid API token (Authorization: Bearer TOKEN)");
+            }
+            if path.contains('{') {
+                add("404", "nothing of that name or id");
+            }
+            if uploads {
+                add(
+                    "413",
+                    "the upload is larger than the limit (the message states it)",
+                );
+                add("422", "the upload cannot be evaluated: {error, problems}");
+            }
+            for (code, answer) in responses.iter_mut() {
+                if code.starts_with('4')
+                    && let Some(answer) = answer.as_object_mut()
+                {
+                    answer.entry("content").or_insert_with(error_content);
+                }
+            }
+        }
+    }
+    doc
+}
+
+fn error_content() -> Value {
+    json!({ "application/json": { "schema": { "$ref": "#/components/schemas/Error" } } })
 }

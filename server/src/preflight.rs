@@ -11,6 +11,8 @@ use evaluator::results::Results;
 use evaluator::selection::Coverage;
 use serde::{Deserialize, Serialize};
 
+use crate::wording::count;
+
 /// What the pre-flight check found.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Preflight {
@@ -95,25 +97,31 @@ impl Preflight {
         let without = coverage.targets_without_estimate;
         if without > 0 {
             warnings.push(format!(
-                "{without} of {targets} targets have no estimate; they will count as misses"
+                "{without} of {} without an estimate will count as misses",
+                count(targets, "target", "targets")
             ));
         }
         if coverage.estimates_ignored > 0 {
             warnings.push(format!(
-                "{} estimates are for images or objects that are not test targets; they will be ignored",
-                coverage.estimates_ignored
+                "{}, for images or objects that are not test targets, will be ignored",
+                count(coverage.estimates_ignored, "estimate", "estimates")
             ));
         }
         if coverage.estimates_for_absent_objects > 0 {
             warnings.push(format!(
-                "{} estimates are for objects that do not appear in their image",
-                coverage.estimates_for_absent_objects
+                "{} for objects that do not appear in the image",
+                count(
+                    coverage.estimates_for_absent_objects,
+                    "estimate",
+                    "estimates"
+                )
             ));
         }
         for (p, n) in &beyond {
             if *n > 0 {
                 warnings.push(format!(
-                    "{n} estimates are beyond what {p} considers per target (the highest-scored are used)",
+                    "{} beyond what {p} considers per target will not count (the highest-scored are used)",
+                    count(*n, "estimate", "estimates"),
                     p = p.as_str()
                 ));
             }

@@ -5,6 +5,8 @@ pub mod admin;
 pub mod api;
 pub mod boards;
 pub mod deadlines;
+pub mod docs;
+pub mod limits;
 pub mod ops;
 pub mod pages;
 pub mod submissions;
@@ -19,6 +21,7 @@ use tower_http::trace::TraceLayer;
 
 use crate::app::AppState;
 use crate::routes::deadlines::Deadlines;
+use crate::routes::limits::UploadLimit;
 
 /// Where the stylesheet and scripts are served from: the repository's `static/` folder.
 fn static_dir() -> std::path::PathBuf {
@@ -51,6 +54,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         ));
     let pages = pages::router(max_upload)
         .merge(account::router())
+        .merge(docs::router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
@@ -62,6 +66,10 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .layer(CompressionLayer::new())
         // Uploads are bounded per route; this bounds every other body.
         .layer(RequestBodyLimitLayer::new(max_upload as usize + 64 * 1024))
+        .layer(axum::middleware::from_fn_with_state(
+            UploadLimit(max_upload),
+            limits::too_large,
+        ))
         .layer(axum::middleware::from_fn_with_state(
             deadlines,
             deadlines::plain_timeout,

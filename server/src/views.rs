@@ -466,7 +466,7 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
                 format!(
                     "{} of {} evaluated; scores expected {}",
                     submission.work_done.min(submission.work),
-                    wording::count(submission.work as usize, "estimate", "estimates"),
+                    wording::count(submission.work, "estimate", "estimates"),
                     wording::wait_until(eta, now)
                 )
             } else {

@@ -2,9 +2,10 @@
 //! (2026-12-02 15:10 UTC)", "2 submissions ahead of yours; 1 being evaluated now". One place,
 //! so the pages, the JSON and the command line word them alike.
 
-/// `n` and the noun, singular for exactly one.
-pub fn count(n: usize, one: &str, many: &str) -> String {
-    if n == 1 {
+/// `n` and the noun, singular for exactly one (any integer type).
+pub fn count(n: impl std::fmt::Display, one: &str, many: &str) -> String {
+    let n = n.to_string();
+    if n == "1" {
         format!("1 {one}")
     } else {
         format!("{n} {many}")
@@ -64,10 +65,7 @@ fn civil_from_days(z: i64) -> (i64, i64, i64) {
 pub fn queue_place(queued_ahead: i64, running: i64) -> String {
     let ahead = match queued_ahead {
         0 => "next in the queue".to_string(),
-        n => format!(
-            "{} ahead of yours",
-            count(n as usize, "submission", "submissions")
-        ),
+        n => format!("{} ahead of yours", count(n, "submission", "submissions")),
     };
     match running {
         0 => ahead,

@@ -103,11 +103,12 @@ pub enum ProblemKind {
         det: f64,
     },
     /// The time differs by more than 0.001 s from the first time given for the image.
+    /// The times as written in the file.
     InconsistentTime {
         scene_id: u32,
         im_id: u32,
-        time: f64,
-        first_time: f64,
+        time: String,
+        first_time: String,
         first_line: u64,
     },
 }
@@ -194,8 +195,8 @@ impl fmt::Display for Problem {
                 first_line,
             } => write!(
                 f,
-                "line {n}: time {time:?} for scene {scene_id}, image {im_id} differs from \
-                 {first_time:?} given on line {first_line} (the time must be the same for every \
+                "line {n}: time {time} for scene {scene_id}, image {im_id} differs from \
+                 {first_time} given on line {first_line} (the time must be the same for every \
                  estimate of an image)"
             ),
         }

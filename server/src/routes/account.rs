@@ -17,7 +17,7 @@ use crate::app::AppState;
 use crate::auth::{self, SESSION_COOKIE, SESSION_TTL_MS, Viewer};
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
-use crate::routes::pages::filters;
+use crate::routes::pages::{filters, site_url};
 use crate::store::accounts::TokenRow;
 
 pub fn router() -> Router<AppState> {
@@ -189,11 +189,14 @@ struct AccountPage {
     tokens: Vec<TokenRow>,
     /// A token just created: shown this once, never again.
     new_token: Option<String>,
+    /// This service's address, so that the `curl` example runs as copied.
+    site: String,
 }
 
 async fn account_page(
     app: &AppState,
     viewer: &Viewer,
+    headers: &HeaderMap,
     new_token: Option<String>,
 ) -> AppResult<Response> {
     let Some(session) = &viewer.session else {
@@ -204,23 +207,29 @@ async fn account_page(
         csrf: session.csrf_token.clone(),
         tokens: app.store.tokens(session.user.id).await?,
         new_token,
+        site: site_url(app, headers),
     }
     .into_response())
 }
 
-async fn account(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
-    account_page(&app, &viewer, None).await
+async fn account(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    headers: HeaderMap,
+) -> AppResult<Response> {
+    account_page(&app, &viewer, &headers, None).await
 }
 
 async fn create_token(
     State(app): State<AppState>,
     viewer: Viewer,
+    headers: HeaderMap,
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();
     let label = TokenLabel::parse(&f.name)?;
     let token = accounts::create_token(&app.store, user.id, &label).await?;
-    account_page(&app, &viewer, Some(token)).await
+    account_page(&app, &viewer, &headers, Some(token)).await
 }
 
 async fn revoke_token(

@@ -95,10 +95,39 @@ pub(crate) mod filters {
         Ok(evaluator::dataset::display_name(name).to_string())
     }
 
+    /// A count with its noun, singular for exactly one: "1 estimate", "2 estimates".
+    #[askama::filter_fn]
+    pub fn plural(
+        n: impl std::fmt::Display,
+        _: &dyn askama::Values,
+        one: &str,
+        many: &str,
+    ) -> askama::Result<String> {
+        Ok(crate::wording::count(n, one, many))
+    }
+
     #[askama::filter_fn]
     pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
         Ok(crate::wording::utc_minute(*ms))
     }
+}
+
+/// The address this service is reached at, for examples to copy: the configured public URL,
+/// else the scheme and host the request came with.
+pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
+    if let Some(url) = &app.config.public_url {
+        return url.trim_end_matches('/').to_string();
+    }
+    let host = headers
+        .get(axum::http::header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .filter(|h| !h.is_empty())
+        .unwrap_or("localhost:8080");
+    let tls = headers
+        .get("x-forwarded-proto")
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.eq_ignore_ascii_case("https"));
+    format!("{}://{host}", if tls { "https" } else { "http" })
 }
 
 #[derive(Template, WebTemplate)]
@@ -448,7 +477,11 @@ pub async fn html_errors(
     request: axum::extract::Request,
     next: axum::middleware::Next,
 ) -> Response {
-    let response = next.run(request).await;
+    error_page(next.run(request).await)
+}
+
+/// An error response as an HTML page; any other response as it is.
+pub fn error_page(response: Response) -> Response {
     let status = response.status();
     match response.extensions().get::<ErrorBody>() {
         Some(body) if status.is_client_error() || status.is_server_error() => {
