@@ -38,7 +38,9 @@ pub async fn submission_action(
             }
             None => false,
         },
-        AdminAction::AddDataset | AdminAction::RetireDataset => return Err(AppError::NotFound),
+        AdminAction::AddDataset | AdminAction::RetireDataset | AdminAction::Snapshot => {
+            return Err(AppError::NotFound);
+        }
     };
     if !done {
         return Err(AppError::BadRequest(format!(

@@ -62,6 +62,18 @@ pub fn document() -> Value {
                     { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
                 ],
                 "responses": { "200": { "description": "{protocol, parameters, datasets, rows}" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/snapshots": { "get": { "summary": "Dated snapshots of the leaderboards, newest first",
+                "responses": { "200": { "description": "{snapshots: [{id, taken_at (epoch ms), taken_by, url, boards: [{protocol, dataset (empty: all datasets), url, json_url}]}]}" } } } },
+            "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",
+                "parameters": [
+                    id_param,
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18"] }, "description": "default: bop19" },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset's board; default: all datasets" }
+                ],
+                "responses": { "200": { "description": "{protocol, parameters, datasets, rows} as /api/v1/leaderboards/{protocol} answered then" }, "404": { "description": "no such snapshot or board" } } } },
+            "/api/v1/admin/snapshots": { "post": { "summary": "Take a snapshot of every board now (administrators; to anyone else this route does not exist)",
+                "security": [{ "bearer": [] }],
+                "responses": { "201": { "description": "{id, taken_at, taken_by, url, boards: [...]} as listed by /api/v1/snapshots" }, "404": { "description": "not an administrator" } } } },
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
         }
     })

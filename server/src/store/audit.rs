@@ -24,6 +24,8 @@ pub enum AdminAction {
     AddDataset,
     #[serde(rename = "retire dataset")]
     RetireDataset,
+    #[serde(rename = "snapshot")]
+    Snapshot,
 }
 
 impl AdminAction {
@@ -35,6 +37,7 @@ impl AdminAction {
             AdminAction::Delete => "delete",
             AdminAction::AddDataset => "add dataset",
             AdminAction::RetireDataset => "retire dataset",
+            AdminAction::Snapshot => "snapshot",
         }
     }
 }
@@ -49,6 +52,7 @@ impl FromStr for AdminAction {
             AdminAction::Delete,
             AdminAction::AddDataset,
             AdminAction::RetireDataset,
+            AdminAction::Snapshot,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)
