@@ -74,22 +74,26 @@ impl Rendered {
     }
 
     fn new(body: Vec<u8>) -> Rendered {
-        let mut encoder =
-            flate2::write::GzEncoder::new(Vec::with_capacity(body.len() / 4), Default::default());
-        // Writing into a Vec cannot fail.
-        let gzip = encoder
-            .write_all(&body)
-            .and_then(|()| encoder.finish())
-            .unwrap_or_default();
         Rendered {
+            gzip: Some(gzip(&body).into()),
             body: body.into(),
-            gzip: Some(gzip.into()),
         }
     }
 
     fn size(&self) -> usize {
         self.body.len() + self.gzip.as_ref().map_or(0, Bytes::len)
     }
+}
+
+/// `body` gzip-compressed, as boards are kept (in this cache and in snapshots).
+pub fn gzip(body: &[u8]) -> Vec<u8> {
+    let mut encoder =
+        flate2::write::GzEncoder::new(Vec::with_capacity(body.len() / 4), Default::default());
+    // Writing into a Vec cannot fail.
+    encoder
+        .write_all(body)
+        .and_then(|()| encoder.finish())
+        .unwrap_or_default()
 }
 
 pub struct BoardCache {

@@ -3,6 +3,7 @@
 pub mod copy_db;
 pub mod eval;
 pub mod service;
+pub mod submit;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +37,8 @@ pub enum Command {
     Eval(Box<eval::EvalArgs>),
     /// Validate a result file without evaluating it.
     CheckResults(eval::CheckArgs),
+    /// Submit a result file to a poseboard server, follow its evaluation and print the scores.
+    Submit(Box<submit::SubmitArgs>),
 }
 
 /// Runs a parsed command line.
@@ -43,6 +46,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Eval(args) => eval::run_eval(*args),
         Command::CheckResults(args) => eval::run_check(args),
+        Command::Submit(args) => submit::run(*args),
         Command::Serve(args) => service::serve(args),
         Command::Worker(args) => service::worker(args),
         Command::Migrate(args) => service::migrate(args),

@@ -41,7 +41,8 @@ pub async fn submission_action(
         AdminAction::AddDataset
         | AdminAction::RetireDataset
         | AdminAction::CoreDataset
-        | AdminAction::NotCoreDataset => return Err(AppError::NotFound),
+        | AdminAction::NotCoreDataset
+        | AdminAction::Snapshot => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(

@@ -128,6 +128,18 @@ fn paths() -> Value {
                     { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
                 ],
                 "responses": { "200": { "description": "{protocol, parameters, datasets, core, columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, scores per dataset ({submission_id, score, ..., pinned}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/snapshots": { "get": { "summary": "Dated snapshots of the leaderboards, newest first",
+                "responses": { "200": { "description": "{snapshots: [{id, taken_at (epoch ms), taken_by, url, boards: [{protocol, dataset (empty: all datasets), url, json_url}]}]}" } } } },
+            "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",
+                "parameters": [
+                    id_param,
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18"] }, "description": "default: bop19" },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset's board; default: all datasets" }
+                ],
+                "responses": { "200": { "description": "the body /api/v1/leaderboards/{protocol} answered then" }, "404": { "description": "no such snapshot or board" } } } },
+            "/api/v1/admin/snapshots": { "post": { "summary": "Take a snapshot of every board now (administrators; to anyone else this route does not exist)",
+                "security": [{ "bearer": [] }],
+                "responses": { "201": { "description": "{id, taken_at, taken_by, url, boards: [...]} as listed by /api/v1/snapshots" }, "404": { "description": "not an administrator" } } } },
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
         }
     })

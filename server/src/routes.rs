@@ -9,6 +9,7 @@ pub mod docs;
 pub mod limits;
 pub mod ops;
 pub mod pages;
+pub mod snapshots;
 pub mod submissions;
 
 use axum::Router;
@@ -55,10 +56,12 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
     let pages = pages::router(max_upload)
         .merge(account::router())
         .merge(docs::router())
+        .merge(snapshots::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
+        .merge(snapshots::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

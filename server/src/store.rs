@@ -28,6 +28,7 @@ pub mod health;
 pub mod methods;
 pub mod queue;
 pub mod scores;
+pub mod snapshots;
 pub mod submissions;
 
 static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/sqlite");

@@ -176,7 +176,8 @@ impl Query {
     }
 }
 
-fn urlencode(s: &str) -> String {
+/// `s` as a query string value.
+pub fn urlencode(s: &str) -> String {
     s.bytes()
         .map(|b| match b {
             b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {

@@ -197,10 +197,7 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
         .context("evaluation failed")?;
     bar.finish();
 
-    for w in &evaluation.report.warnings {
-        eprintln!("warning: {w}");
-    }
-    print!("{}", table(&evaluation.report));
+    print_scores(&evaluation.report);
     if let Some(out) = &args.out {
         write_json(out, &evaluation.report)?;
     }
@@ -538,7 +535,8 @@ fn load_coco_results(path: &Path) -> Result<coco::CocoResults> {
     })
 }
 
-fn load_results(path: &Path) -> Result<evaluator::Results> {
+/// Reads and checks a result file; its problems come back naming their lines.
+pub(crate) fn load_results(path: &Path) -> Result<evaluator::Results> {
     results::load_results(path).map_err(|e| match e {
         evaluator::Error::Results(problems) => {
             anyhow::anyhow!("{} is not a valid result file:\n{problems}", path.display())
@@ -550,6 +548,14 @@ fn load_results(path: &Path) -> Result<evaluator::Results> {
 fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     let text = serde_json::to_string_pretty(value)?;
     std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A report's warnings on stderr and its scores on stdout, as `eval` and `submit` show them.
+pub(crate) fn print_scores(report: &Report) {
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    print!("{}", table(report));
 }
 
 /// The scores as a table for the terminal.

@@ -3,6 +3,7 @@
 //! else these routes answer as if they did not exist, whatever the method and body.
 
 use axum::extract::{Form, FromRequestParts, Path, Request, State};
+use axum::http::StatusCode;
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
@@ -14,7 +15,7 @@ use crate::app::AppState;
 use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
 use crate::moderation;
-use crate::routes::pages;
+use crate::routes::{pages, snapshots};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
 
@@ -31,6 +32,7 @@ pub fn router(app: AppState) -> Router<AppState> {
         )
         .route("/api/v1/admin/datasets/{name}/core", post(api_set_core))
         .route("/api/v1/admin/audit", get(api_audit))
+        .route("/api/v1/admin/snapshots", post(api_take_snapshot))
         .route(
             "/admin/submissions/{id}/{action}",
             post(page_submission_action),
@@ -210,4 +212,11 @@ async fn api_audit(
 ) -> AppResult<Json<serde_json::Value>> {
     admin(&viewer)?;
     Ok(Json(json!({ "audit": app.store.audit_log(500).await? })))
+}
+
+/// Takes a snapshot of every board: 201 with its `id` and the permalinks of its boards.
+async fn api_take_snapshot(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    let entry = snapshots::take(&app, actor).await?;
+    Ok((StatusCode::CREATED, Json(entry)).into_response())
 }

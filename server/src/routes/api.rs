@@ -13,7 +13,7 @@ use evaluator::protocol::ProtocolName;
 use serde::Deserialize;
 use serde_json::json;
 
-use crate::app::AppState;
+use crate::app::{App, AppState};
 use crate::auth::Viewer;
 use crate::board_cache::Format;
 use crate::domain::{MethodForm, Visibility};
@@ -324,11 +324,20 @@ async fn leaderboard(
 ) -> AppResult<Response> {
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
     let key = boards::key(Format::Json, protocol, &filter);
-    boards::answer(&app, &headers, key, || async {
-        let board = views::leaderboard(&app, protocol, &filter).await?;
-        serde_json::to_vec(&board).map_err(|e| AppError::Internal(format!("leaderboard JSON: {e}")))
+    boards::answer(&app, &headers, key, || {
+        leaderboard_json(&app, protocol, &filter)
     })
     .await
+}
+
+/// A board's JSON as it stands: served live, and kept by snapshots.
+pub(crate) async fn leaderboard_json(
+    app: &App,
+    protocol: ProtocolName,
+    filter: &views::BoardFilter,
+) -> AppResult<Vec<u8>> {
+    let board = views::leaderboard(app, protocol, filter).await?;
+    serde_json::to_vec(&board).map_err(|e| AppError::Internal(format!("leaderboard JSON: {e}")))
 }
 
 /// The OpenAPI description of this API, written by hand: it is small, and a generator would

@@ -59,7 +59,7 @@ where
 }
 
 /// Whether `Accept-Encoding` takes gzip (by name or `*`, with a non-zero quality).
-fn accepts_gzip(headers: &HeaderMap) -> bool {
+pub(crate) fn accepts_gzip(headers: &HeaderMap) -> bool {
     headers
         .get_all(header::ACCEPT_ENCODING)
         .iter()

@@ -16,7 +16,7 @@ use evaluator::Report;
 use evaluator::protocol::ProtocolName;
 use serde::Deserialize;
 
-use crate::app::AppState;
+use crate::app::{App, AppState};
 use crate::auth::Viewer;
 use crate::board_cache::Format;
 use crate::domain::{MethodForm, Modality, ModelScope, TrainingData, Visibility};
@@ -132,9 +132,30 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 
 #[derive(Template, WebTemplate)]
 #[template(path = "leaderboard.html")]
-struct LeaderboardPage {
-    board: Leaderboard,
-    protocols: [ProtocolName; 2],
+pub(crate) struct LeaderboardPage {
+    pub(crate) board: Leaderboard,
+    pub(crate) protocols: [ProtocolName; 2],
+}
+
+impl LeaderboardPage {
+    /// The page of a board as it stands: served live, and kept by snapshots.
+    pub(crate) async fn of(
+        app: &App,
+        protocol: ProtocolName,
+        q: &BoardFilter,
+    ) -> AppResult<LeaderboardPage> {
+        Ok(LeaderboardPage {
+            board: views::leaderboard(app, protocol, q).await?,
+            protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
+        })
+    }
+}
+
+/// A page's HTML.
+pub(crate) fn html(page: &impl Template) -> AppResult<Vec<u8>> {
+    page.render()
+        .map(String::into_bytes)
+        .map_err(|e| AppError::Internal(format!("page: {e}")))
 }
 
 async fn home(
@@ -165,14 +186,7 @@ async fn leaderboard_page(
 ) -> AppResult<Response> {
     let key = boards::key(Format::Html, protocol, &q);
     boards::answer(app, headers, key, || async move {
-        let page = LeaderboardPage {
-            board: views::leaderboard(app, protocol, &q).await?,
-            protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
-        };
-        let html = page
-            .render()
-            .map_err(|e| AppError::Internal(format!("leaderboard page: {e}")))?;
-        Ok(html.into_bytes())
+        html(&LeaderboardPage::of(app, protocol, &q).await?)
     })
     .await
 }

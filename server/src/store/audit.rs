@@ -28,6 +28,8 @@ pub enum AdminAction {
     CoreDataset,
     #[serde(rename = "not core dataset")]
     NotCoreDataset,
+    #[serde(rename = "snapshot")]
+    Snapshot,
 }
 
 impl AdminAction {
@@ -41,6 +43,7 @@ impl AdminAction {
             AdminAction::RetireDataset => "retire dataset",
             AdminAction::CoreDataset => "core dataset",
             AdminAction::NotCoreDataset => "not core dataset",
+            AdminAction::Snapshot => "snapshot",
         }
     }
 }
@@ -57,6 +60,7 @@ impl FromStr for AdminAction {
             AdminAction::RetireDataset,
             AdminAction::CoreDataset,
             AdminAction::NotCoreDataset,
+            AdminAction::Snapshot,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

@@ -31,6 +31,8 @@ const TABLES: &[&str] = &[
     "audit_log",
     "rate_counters",
     "sign_in_addresses",
+    "snapshots",
+    "snapshot_boards",
 ];
 
 /// Tables the migrations create and seed themselves, holding no data of their own: not copied.
