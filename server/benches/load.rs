@@ -27,6 +27,7 @@ use server::domain::{Hardware, MethodName, Modality, TokenLabel, TrainingData, U
 use server::preflight::Preflight;
 use server::store::Store;
 use server::store::methods::MethodMeta;
+use server::store::queue::Finished;
 use server::store::submissions::{Created, NewSubmission};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader as AsyncBufReader};
 use tokio::net::TcpStream;
@@ -479,6 +480,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             dataset_id: ds.id,
             protocols: &protocols,
             visibility: server::domain::Visibility::Public,
+            held: false,
             file_name: "m_synthA-test.csv",
             file_sha256: &sha,
             file_size: 1000,
@@ -497,7 +499,15 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             .ok_or("the job just queued")?;
         let f = 0.4 + 0.6 * (i as f64 / BOARD_SUBMISSIONS as f64);
         store
-            .finish(job.id, "populate", &scaled(reports, f))
+            .finish(
+                job.id,
+                "populate",
+                &Finished {
+                    reports: scaled(reports, f),
+                    errors: Vec::new(),
+                    eval_ms: 1000,
+                },
+            )
             .await?;
         ids.push(id);
     }
