@@ -27,6 +27,7 @@ use serde::{Deserialize, Serialize};
 
 pub mod eval;
 pub mod gt;
+pub mod problems;
 pub mod results;
 pub mod rle;
 

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use crate::coco::results::EntryProblems;
+use crate::coco::problems::EntryProblems;
 use crate::results::problems::Problems;
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

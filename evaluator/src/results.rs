@@ -27,13 +27,10 @@ use crate::math::{Mat3, Pose};
 
 pub mod problems;
 
-pub use problems::{Field, Problem, ProblemKind, Problems};
+pub use problems::{Field, MAX_PROBLEMS, Problem, ProblemKind, Problems};
 
 /// The header of a BOP'19 result file. bop_toolkit skips line 1 when it contains this text.
 pub const HEADER: &str = "scene_id,im_id,obj_id,score,R,t,time";
-
-/// At most this many problems are kept in [`Problems`]; the others are only counted.
-pub const MAX_PROBLEMS: usize = 100;
 
 /// How far a matrix may be from a rotation and still be accepted as one: both
 /// `max_ij |(R Rᵀ − I)_ij|` and `|det R − 1|` must be at most this.

@@ -120,8 +120,15 @@ fn screenshot_dir() -> PathBuf {
     dir
 }
 
+/// The element `selector` finds, waiting up to 10 s for it (a page may still be loading after
+/// a form was submitted).
 async fn css(c: &Client, selector: &str) -> fantoccini::elements::Element {
-    match c.find(Locator::Css(selector)).await {
+    let found = c
+        .wait()
+        .at_most(Duration::from_secs(10))
+        .for_element(Locator::Css(selector))
+        .await;
+    match found {
         Ok(el) => el,
         Err(e) => panic!("`{selector}` on {:?}: {e}", c.current_url().await),
     }
@@ -158,7 +165,23 @@ async fn fill(c: &Client, form: &str, fields: &[(&str, &str)]) {
     }
 }
 
+/// Submits `form` and waits until the browser has left the page (the old page's root element
+/// goes stale), so that what is read next is the answer's page.
 async fn submit(c: &Client, form: &str) {
+    let old_page = css(c, "html").await;
+    press(c, form).await;
+    let start = Instant::now();
+    while old_page.tag_name().await.is_ok() {
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "`{form}` did not lead to a new page"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Clicks `form`'s submit button (for a form that asks first: the page stays).
+async fn press(c: &Client, form: &str) {
     css(c, &format!("{form} button[type=\"submit\"]"))
         .await
         .click()
@@ -166,9 +189,9 @@ async fn submit(c: &Client, form: &str) {
         .expect("submit");
 }
 
-/// Uploads `file` through the submit form and returns the submission's id, from the page the
-/// form leads to.
-async fn upload_form(c: &Client, base: &str, method: &str, file: &Path, visibility: &str) -> i64 {
+/// Uploads `file` through the submit form, with "publish when evaluated" ticked or not, and
+/// returns the submission's id, from the page the form leads to.
+async fn upload_form(c: &Client, base: &str, method: &str, file: &Path, publish: bool) -> i64 {
     c.goto(&format!("{base}/submit"))
         .await
         .expect("submit page");
@@ -186,14 +209,25 @@ async fn upload_form(c: &Client, base: &str, method: &str, file: &Path, visibili
         .select_by_value("bop19")
         .await
         .expect("protocol");
-    select("visibility")
-        .await
-        .select_by_value(visibility)
-        .await
-        .expect("visibility");
+    let publish_box = css(c, "form.submit input[name=\"publish\"]").await;
+    let ticked = publish_box.prop("checked").await.expect("checked?");
+    assert_eq!(
+        ticked.as_deref(),
+        Some("true"),
+        "publishing is the form's default"
+    );
+    if !publish {
+        publish_box.click().await.expect("untick publish");
+    }
     css(c, "form.submit input[type=\"file\"]")
         .await
-        .send_keys(file.to_str().expect("path"))
+        // WebDriver takes only canonical paths.
+        .send_keys(
+            file.canonicalize()
+                .expect("the result file")
+                .to_str()
+                .expect("path"),
+        )
         .await
         .expect("file chosen");
     submit(c, "form.submit").await;
@@ -341,7 +375,7 @@ fn pages_work_in_a_real_browser() {
             "the copy button answers (its script runs under the CSP)"
         );
         // Revoking asks first; saying no keeps the token.
-        submit(&c, "form[action$=\"/revoke\"]").await;
+        press(&c, "form[action$=\"/revoke\"]").await;
         let question = c.get_alert_text().await.expect("a confirmation");
         assert!(
             question.starts_with("Revoke the token laptop"),
@@ -356,8 +390,8 @@ fn pages_work_in_a_real_browser() {
             "the token is still there"
         );
 
-        // Upload through the form and watch it go from the queue to done.
-        let id = upload_form(&c, base, "browser-net", &public_file, "public").await;
+        // Upload through the form, kept private for now, and watch it go from the queue to done.
+        let id = upload_form(&c, base, "browser-net", &public_file, false).await;
         let status = text(&c, "#status-text").await;
         assert!(
             status.starts_with("queued"),
@@ -374,8 +408,27 @@ fn pages_work_in_a_real_browser() {
             .expect("attr")
             .expect("the method's link");
 
-        // The leaderboard shows the score `poseboard eval` gives for the file.
+        // Not on the board until published; then the board shows the score `poseboard eval`
+        // gives for the file.
         let board = format!("{base}/leaderboards/bop19?dataset=synthA");
+        c.goto(&board).await.expect("leaderboard");
+        assert!(
+            c.find(Locator::Css(&format!("a[href=\"/submissions/{id}\"]")))
+                .await
+                .is_err(),
+            "a private submission is on the board"
+        );
+        c.goto(&submission_url).await.expect("submission page");
+        submit(
+            &c,
+            &format!("form[action=\"/submissions/{id}/visibility\"]"),
+        )
+        .await;
+        assert_eq!(
+            text(&c, "#publication").await,
+            "public",
+            "published from its page"
+        );
         c.goto(&board).await.expect("leaderboard");
         let score = text(&c, &format!("a[href=\"/submissions/{id}\"]")).await;
         assert_eq!(
@@ -385,7 +438,7 @@ fn pages_work_in_a_real_browser() {
         );
 
         // A private upload: its owner sees it, a signed-out visitor finds it nowhere.
-        let hidden = upload_form(&c, base, "hidden-net", &private_file, "private").await;
+        let hidden = upload_form(&c, base, "hidden-net", &private_file, false).await;
         watch_until_done(&c).await;
         let hidden_method = css(&c, "h1 a[href^=\"/methods/\"]")
             .await

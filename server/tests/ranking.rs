@@ -41,14 +41,16 @@ fn result_for(dir: &Path, stem: &str, dataset: &str) -> PathBuf {
     to
 }
 
-/// Uploads and waits for the evaluation; returns the submission id.
+/// Uploads for publication and waits for the evaluation; returns the submission id.
 fn submit(server: &Server, token: &str, dir: &Path, fields: &[(&str, &str)], stem: &str) -> i64 {
+    let mut fields = fields.to_vec();
+    fields.push(("visibility", "public"));
     let dataset = fields
         .iter()
         .find(|(k, _)| *k == "dataset")
         .map(|(_, v)| *v)
         .expect("dataset");
-    let r = upload_with(server, token, fields, &result_for(dir, stem, dataset));
+    let r = upload_with(server, token, &fields, &result_for(dir, stem, dataset));
     assert_eq!(r.status(), 202, "{stem} on {dataset}");
     let id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
     wait_done(&server.base, id, Duration::from_secs(120));

@@ -3,7 +3,11 @@
 
 use std::fmt;
 
-use super::{HEADER, MAX_LINE_BYTES, MAX_PROBLEMS};
+use super::{HEADER, MAX_LINE_BYTES};
+
+/// At most this many problems are kept in [`Problems`] (and in the COCO parser's problems); the
+/// others are only counted.
+pub const MAX_PROBLEMS: usize = 100;
 
 /// A field of a data line, named as in the header.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
