@@ -10,7 +10,7 @@ use crate::dataset::Dataset;
 use crate::matching::{EstimateErrors, NTop};
 use crate::protocol::{Column, ErrorKind, Protocol, ProtocolName, normalised_error};
 use crate::results::Results;
-use crate::score::{Scored, ScoredImage, Scores, localization_scores};
+use crate::score::{Scored, ScoredImage, Scores, Targets};
 use crate::selection::Selection;
 use crate::stats::{mean, recall};
 
@@ -171,6 +171,7 @@ pub(crate) fn build(
     let scene_ids: Vec<u32> = dataset.scenes.keys().copied().collect();
 
     // Scores for every (column, threshold), in protocol order.
+    let targets = Targets::new(images, &object_ids, &scene_ids, protocol.n_top);
     let mut per_column: Vec<Vec<(f64, Scored)>> = Vec::with_capacity(columns.len());
     for (ci, col) in columns.iter().enumerate() {
         let spec = &protocol.errors[col.error];
@@ -178,15 +179,9 @@ pub(crate) fn build(
             .thresholds
             .iter()
             .map(|&th| {
-                let s = localization_scores(
-                    images,
-                    errors,
-                    &object_ids,
-                    &scene_ids,
-                    protocol.n_top,
-                    th,
-                    |e, i| normalised_error(dataset, &spec.kind, e, e.errors[ci][i]),
-                );
+                let s = targets.scores(errors, th, |e, i| {
+                    normalised_error(dataset, &spec.kind, e, e.errors[ci][i])
+                });
                 (th, s)
             })
             .collect();

@@ -65,68 +65,118 @@ pub fn localization_scores(
     threshold: f64,
     error: impl Fn(&EstimateErrors, usize) -> f64 + Copy,
 ) -> Scored {
-    let mut obj_targets: BTreeMap<u32, usize> = object_ids.iter().map(|&o| (o, 0)).collect();
-    let mut obj_tps = obj_targets.clone();
-    let mut scene_targets: BTreeMap<u32, usize> = scene_ids.iter().map(|&s| (s, 0)).collect();
-    let mut scene_tps = scene_targets.clone();
-    let (mut targets, mut tps, mut gt_count) = (0usize, 0usize, 0usize);
-    let mut all_matched = Vec::with_capacity(images.len());
+    Targets::new(images, object_ids, scene_ids, n_top).scores(errors, threshold, error)
+}
 
-    for im in images {
-        gt_count += im.gts.len();
-        let valid: Vec<bool> = im.gts.iter().map(|g| g.2).collect();
-        let mut matched = vec![false; im.gts.len()];
-        for (_, ests) in &im.estimates {
-            match_image_object(
-                ests.iter().map(|&i| &errors[i]),
-                n_top,
-                threshold,
-                &valid,
-                &mut matched,
-                error,
-            );
+/// The targets of the images, counted once: they do not depend on the threshold, and a
+/// report scores at up to 120 thresholds.
+pub struct Targets<'a> {
+    images: &'a [ScoredImage],
+    n_top: NTop,
+    /// Per image, per gt id: whether the instance is expected to be found.
+    valid: Vec<Vec<bool>>,
+    obj_targets: BTreeMap<u32, usize>,
+    scene_targets: BTreeMap<u32, usize>,
+    targets: usize,
+    gt_count: usize,
+}
+
+impl<'a> Targets<'a> {
+    /// `object_ids` and `scene_ids` are every object and scene of the dataset: like the
+    /// reference, one without targets reports recall 0 and counts in the means.
+    pub fn new(
+        images: &'a [ScoredImage],
+        object_ids: &[u32],
+        scene_ids: &[u32],
+        n_top: NTop,
+    ) -> Self {
+        let mut obj_targets: BTreeMap<u32, usize> = object_ids.iter().map(|&o| (o, 0)).collect();
+        let mut scene_targets: BTreeMap<u32, usize> = scene_ids.iter().map(|&s| (s, 0)).collect();
+        let (mut targets, mut gt_count) = (0usize, 0usize);
+        let mut valid = Vec::with_capacity(images.len());
+        for im in images {
+            gt_count += im.gts.len();
+            valid.push(im.gts.iter().map(|g| g.2).collect());
+            // Per object of the image, its valid instances, at most n_top of them.
+            let mut per_obj: BTreeMap<u32, usize> = BTreeMap::new();
+            for g in im.gts.iter().filter(|g| g.2) {
+                *per_obj.entry(g.0).or_default() += 1;
+            }
+            for (obj, count) in per_obj {
+                let count = match n_top {
+                    NTop::Top(n) => count.min(n as usize),
+                    NTop::InstCount | NTop::All => count,
+                };
+                targets += count;
+                *obj_targets.entry(obj).or_default() += count;
+                *scene_targets.entry(im.scene_id).or_default() += count;
+            }
         }
-        // Targets: per object of the image, its valid instances, at most n_top of them.
-        let mut per_obj: BTreeMap<u32, usize> = BTreeMap::new();
-        for g in im.gts.iter().filter(|g| g.2) {
-            *per_obj.entry(g.0).or_default() += 1;
+        Targets {
+            images,
+            n_top,
+            valid,
+            obj_targets,
+            scene_targets,
+            targets,
+            gt_count,
         }
-        for (obj, count) in per_obj {
-            let count = match n_top {
-                NTop::Top(n) => count.min(n as usize),
-                NTop::InstCount | NTop::All => count,
-            };
-            targets += count;
-            *obj_targets.entry(obj).or_default() += count;
-            *scene_targets.entry(im.scene_id).or_default() += count;
-        }
-        for (g, _) in im.gts.iter().zip(&matched).filter(|(g, m)| g.2 && **m) {
-            tps += 1;
-            *obj_tps.entry(g.0).or_default() += 1;
-            *scene_tps.entry(im.scene_id).or_default() += 1;
-        }
-        all_matched.push(matched);
     }
 
-    let obj_recalls: BTreeMap<u32, f64> = obj_targets
-        .iter()
-        .map(|(&o, &n)| (o, recall(obj_tps[&o], n)))
-        .collect();
-    let scene_recalls: BTreeMap<u32, f64> = scene_targets
-        .iter()
-        .map(|(&s, &n)| (s, recall(scene_tps[&s], n)))
-        .collect();
-    Scored {
-        scores: Scores {
-            recall: recall(tps, targets),
-            mean_obj_recall: mean(&obj_recalls.values().copied().collect::<Vec<_>>()),
-            mean_scene_recall: mean(&scene_recalls.values().copied().collect::<Vec<_>>()),
-            obj_recalls,
-            scene_recalls,
-            gt_count,
-            targets_count: targets,
-            tp_count: tps,
-        },
-        matched: all_matched,
+    /// Scores at one threshold of correctness.
+    pub fn scores(
+        &self,
+        errors: &[EstimateErrors],
+        threshold: f64,
+        error: impl Fn(&EstimateErrors, usize) -> f64 + Copy,
+    ) -> Scored {
+        let (obj_targets, scene_targets) = (&self.obj_targets, &self.scene_targets);
+        let mut obj_tps: BTreeMap<u32, usize> = obj_targets.keys().map(|&o| (o, 0)).collect();
+        let mut scene_tps: BTreeMap<u32, usize> = scene_targets.keys().map(|&s| (s, 0)).collect();
+        let mut tps = 0usize;
+        let mut all_matched = Vec::with_capacity(self.images.len());
+        for (im, valid) in self.images.iter().zip(&self.valid) {
+            let mut matched = vec![false; im.gts.len()];
+            for (_, ests) in &im.estimates {
+                match_image_object(
+                    ests.iter().map(|&i| &errors[i]),
+                    self.n_top,
+                    threshold,
+                    valid,
+                    &mut matched,
+                    error,
+                );
+            }
+            for (g, _) in im.gts.iter().zip(&matched).filter(|(g, m)| g.2 && **m) {
+                tps += 1;
+                *obj_tps.entry(g.0).or_default() += 1;
+                *scene_tps.entry(im.scene_id).or_default() += 1;
+            }
+            all_matched.push(matched);
+        }
+        let targets = self.targets;
+        let gt_count = self.gt_count;
+
+        let obj_recalls: BTreeMap<u32, f64> = obj_targets
+            .iter()
+            .map(|(&o, &n)| (o, recall(obj_tps[&o], n)))
+            .collect();
+        let scene_recalls: BTreeMap<u32, f64> = scene_targets
+            .iter()
+            .map(|(&s, &n)| (s, recall(scene_tps[&s], n)))
+            .collect();
+        Scored {
+            scores: Scores {
+                recall: recall(tps, targets),
+                mean_obj_recall: mean(&obj_recalls.values().copied().collect::<Vec<_>>()),
+                mean_scene_recall: mean(&scene_recalls.values().copied().collect::<Vec<_>>()),
+                obj_recalls,
+                scene_recalls,
+                gt_count,
+                targets_count: targets,
+                tp_count: tps,
+            },
+            matched: all_matched,
+        }
     }
 }
