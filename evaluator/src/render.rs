@@ -48,8 +48,8 @@
 //! rasterised, into a [`DepthWindow`]; a triangle whose fixed-point bounding box holds no pixel
 //! centre (most faces of a fine scan) is rejected before any set-up; the depth plane (with its
 //! division) is set up only once a sample is found inside; edge functions are stepped
-//! incrementally in 64-bit integers, and depth is rounded to 16 bits in float32 without a
-//! conversion to float64; [`screen_box`] bounds a render without drawing it. Faces
+//! incrementally in 64-bit integers, and depth is rounded to 16 bits in float32 and read from
+//! the float's bits; [`screen_box`] bounds a render without drawing it. Faces
 //! are not culled even on closed meshes: with 16-bit depth a back face at a silhouette can be a
 //! depth step nearer than the front face and win the pixel, as it does in the toolkit.
 
@@ -462,6 +462,15 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     if !(a.usable && b.usable && c.usable) {
         return;
     }
+    // Pixel centres inside the triangle's fixed-point bounding box, within the window: most
+    // faces of a fine mesh hold none, so this test comes first.
+    let tx0 = ceil_px(a.fx.min(b.fx).min(c.fx)).max(win.x0);
+    let tx1 = floor_px(a.fx.max(b.fx).max(c.fx)).min(win.x1);
+    let ty0 = ceil_px(a.fy.min(b.fy).min(c.fy)).max(win.y0);
+    let ty1 = floor_px(a.fy.max(b.fy).max(c.fy)).min(win.y1);
+    if tx0 > tx1 || ty0 > ty1 {
+        return;
+    }
     // Twice the signed area in fixed point; llvmpipe draws positive triangles and swaps the
     // first two vertices of negative ones.
     let area = (a.fx - b.fx) * (c.fy - a.fy) - (c.fx - a.fx) * (a.fy - b.fy);
@@ -470,14 +479,6 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     }
     if area < 0 {
         std::mem::swap(&mut a, &mut b);
-    }
-    // Pixel centres inside the triangle's fixed-point bounding box, within the window.
-    let tx0 = ceil_px(a.fx.min(b.fx).min(c.fx)).max(win.x0);
-    let tx1 = floor_px(a.fx.max(b.fx).max(c.fx)).min(win.x1);
-    let ty0 = ceil_px(a.fy.min(b.fy).min(c.fy)).max(win.y0);
-    let ty1 = floor_px(a.fy.max(b.fy).max(c.fy)).min(win.y1);
-    if tx0 > tx1 || ty0 > ty1 {
-        return;
     }
 
     // Edge functions E = dcdx (x_i - X) - dcdy (y_i - Y) of the edges (a, b), (b, c), (c, a),
@@ -559,11 +560,13 @@ impl DepthPlane {
         if !z.is_finite() {
             return None;
         }
-        // `v · 2^16` is exact in float32 and below 2^16, so adding and subtracting 1.5 · 2^23
-        // rounds it to the nearest integer, ties to even, as the float64 path would.
+        // `v · 2^16` is exact in float32 and below 2^16, so adding 1.5 · 2^23 rounds it to
+        // the nearest integer, ties to even, as the float64 path would, and leaves that
+        // integer in the low bits of the sum (whose unit in the last place is 1): reading it
+        // from the bits spares the saturating float-to-integer conversion.
         const MAGIC: f32 = 12_582_912.0;
         let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0) * 65536.0;
-        Some(((v + MAGIC) - MAGIC) as u32)
+        Some((v + MAGIC).to_bits() - MAGIC.to_bits())
     }
 }
 
