@@ -104,6 +104,97 @@ fn submit_prints_the_scores_eval_prints() {
             );
         }
     }
+
+    // The same over https, through a TLS front whose self-signed certificate only `--ca-cert`
+    // vouches for: refused without it, the same submission and tables with it.
+    let front = TlsFront::start(&server.base, dir.path());
+    let out = submit(&server, &server.token, &file, &["--server", &front.url]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "an unknown certificate was trusted");
+    assert!(
+        stderr.contains(&format!("cannot reach {}", front.url)) && stderr.contains("certificate"),
+        "{stderr}"
+    );
+    let ca = front.certificate.to_str().expect("utf-8 path");
+    let out = submit(
+        &server,
+        &server.token,
+        &file,
+        &["--server", &front.url, "--ca-cert", ca, "--json"],
+    );
+    let over_tls = String::from_utf8(out.stdout).expect("utf-8");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let again: Value =
+        serde_json::from_str(over_tls.lines().last().expect("a last line")).expect("JSON");
+    assert_eq!(
+        again["id"], printed["id"],
+        "the same file for the same method"
+    );
+    assert_eq!(again["scores"], printed["scores"]);
+    assert!(over_tls.contains(&eval_stdout(&synth_a, &file, "bop19")));
+}
+
+/// An https:// address in front of the plain-HTTP test server, as a reverse proxy terminating
+/// TLS would be: a certificate for 127.0.0.1 signed by nobody the bundled roots know, and the
+/// decrypted bytes passed through to the server.
+struct TlsFront {
+    url: String,
+    /// The certificate, PEM, as an operator would hand it out.
+    certificate: std::path::PathBuf,
+    _runtime: tokio::runtime::Runtime,
+}
+
+impl TlsFront {
+    fn start(backend: &str, dir: &Path) -> TlsFront {
+        use std::sync::Arc;
+        use tokio_rustls::rustls::{self, pki_types::PrivateKeyDer};
+
+        let backend = backend.trim_start_matches("http://").to_string();
+        let issued = rcgen::generate_simple_self_signed(vec!["127.0.0.1".to_string()])
+            .expect("a certificate");
+        let certificate = dir.join("front.pem");
+        std::fs::write(&certificate, issued.cert.pem()).expect("write the certificate");
+        let config = rustls::ServerConfig::builder_with_provider(Arc::new(
+            rustls::crypto::ring::default_provider(),
+        ))
+        .with_safe_default_protocol_versions()
+        .expect("TLS versions")
+        .with_no_client_auth()
+        .with_single_cert(
+            vec![issued.cert.der().clone()],
+            PrivateKeyDer::Pkcs8(issued.signing_key.serialize_der().into()),
+        )
+        .expect("a server configuration");
+        let acceptor = tokio_rustls::TlsAcceptor::from(Arc::new(config));
+        let runtime = tokio::runtime::Runtime::new().expect("a runtime");
+        let listener = runtime
+            .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+            .expect("a port");
+        let url = format!("https://{}", listener.local_addr().expect("address"));
+        runtime.spawn(async move {
+            while let Ok((socket, _)) = listener.accept().await {
+                let (acceptor, backend) = (acceptor.clone(), backend.clone());
+                tokio::spawn(async move {
+                    // A client that refuses the certificate ends the handshake: nothing to pass.
+                    let Ok(mut tls) = acceptor.accept(socket).await else {
+                        return;
+                    };
+                    if let Ok(mut plain) = tokio::net::TcpStream::connect(&backend).await {
+                        let _ = tokio::io::copy_bidirectional(&mut tls, &mut plain).await;
+                    }
+                });
+            }
+        });
+        TlsFront {
+            url,
+            certificate,
+            _runtime: runtime,
+        }
+    }
 }
 
 #[test]
@@ -198,7 +289,7 @@ fn a_refused_upload_fails_with_the_servers_message() {
         .expect("runs");
     assert!(!out.status.success());
     assert!(
-        String::from_utf8_lossy(&out.stderr).contains("cannot upload to http://127.0.0.1:9"),
+        String::from_utf8_lossy(&out.stderr).contains("cannot reach http://127.0.0.1:9"),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );

@@ -47,6 +47,10 @@ pub struct SubmitArgs {
     /// A personal API token (made on the server's account page).
     #[arg(long, env = "POSEBOARD_TOKEN", hide_env_values = true)]
     pub token: String,
+    /// A PEM certificate to trust as well as the bundled roots: the authority of a server with
+    /// a private or self-signed certificate.
+    #[arg(long, env = "POSEBOARD_CA_CERT")]
+    pub ca_cert: Option<PathBuf>,
     /// Also print the final submission as JSON, as the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -63,18 +67,21 @@ pub fn run(args: SubmitArgs) -> Result<()> {
         results.estimates.len()
     );
     let server = args.server.trim_end_matches('/').to_string();
-    if !server.starts_with("http://") {
-        bail!(
-            "{server}: only http:// servers can be reached (this build has no TLS client); \
-             reach an https:// server through a local TLS tunnel"
-        );
+    if !server.starts_with("http://") && !server.starts_with("https://") {
+        bail!("{server}: the server's address must start with http:// or https://");
     }
-    let client = Client::builder()
+    let mut client = Client::builder()
         .connect_timeout(Duration::from_secs(20))
         // An upload of a large file takes as long as it takes; the server bounds stalls.
-        .timeout(None)
-        .build()
-        .context("cannot start the HTTP client")?;
+        .timeout(None);
+    if let Some(path) = &args.ca_cert {
+        let pem = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let certificate = reqwest::Certificate::from_pem(&pem)
+            .with_context(|| format!("{} is not a PEM certificate", path.display()))?;
+        client = client.add_root_certificate(certificate);
+    }
+    let client = client.build().context("cannot start the HTTP client")?;
+    reach(&client, &server, &args.token)?;
 
     let accepted = upload(&client, &server, &args)?;
     let id = accepted["id"]
@@ -100,6 +107,22 @@ pub fn run(args: SubmitArgs) -> Result<()> {
         println!("{done}");
     }
     Ok(())
+}
+
+/// A first small request, signed with the token, before the file is streamed: a server that
+/// cannot be reached, a certificate that is not trusted or a token the server refuses is named
+/// as such (a server refusing a streamed upload early is heard only as "send failed"), and a
+/// large file is not sent for nothing. The connection is not kept for the upload, for the same
+/// reason.
+fn reach(client: &Client, server: &str, token: &str) -> Result<()> {
+    let response = client
+        .get(format!("{server}/api/v1/me/submissions"))
+        .bearer_auth(token)
+        .header(reqwest::header::CONNECTION, "close")
+        .timeout(Duration::from_secs(60))
+        .send()
+        .with_context(|| format!("cannot reach {server}"))?;
+    answer(response).map(drop)
 }
 
 /// Sends the file with its fields; the answer's JSON when accepted.
