@@ -382,9 +382,14 @@ pub struct Comparison {
     pub choice: Choice,
 }
 
-/// Per target (scene, image, object): counted instances, found ones, lowest error.
-fn per_target(list: &[TargetOutcome]) -> BTreeMap<(u32, u32, u32), (usize, usize, Option<f64>)> {
-    let mut out: BTreeMap<(u32, u32, u32), (usize, usize, Option<f64>)> = BTreeMap::new();
+/// A target: (scene, image, object).
+type TargetKey = (u32, u32, u32);
+
+/// Of a target: its counted instances, the found ones, the lowest error.
+type Tally = (usize, usize, Option<f64>);
+
+fn per_target(list: &[TargetOutcome]) -> BTreeMap<TargetKey, Tally> {
+    let mut out: BTreeMap<TargetKey, Tally> = BTreeMap::new();
     for o in list {
         let t = out.entry((o.scene_id, o.im_id, o.obj_id)).or_default();
         t.0 += 1;
@@ -404,7 +409,7 @@ fn pair(
     choice: &Choice,
 ) -> (PairedCounts, Vec<TargetPair>) {
     let (ta, tb) = (per_target(a), per_target(b));
-    let mut keys: Vec<(u32, u32, u32)> = ta.keys().chain(tb.keys()).copied().collect();
+    let mut keys: Vec<TargetKey> = ta.keys().chain(tb.keys()).copied().collect();
     keys.sort_unstable();
     keys.dedup();
     let mut counts = PairedCounts::default();

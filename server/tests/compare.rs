@@ -78,6 +78,9 @@ fn json(server: &Server, path: &str, token: &str) -> Value {
 
 type Key = (u32, u32, u32);
 
+/// Of one side of a target: the instances found, and the error shown.
+type Found = (usize, Option<f64>);
+
 /// The dataset's ground truth: per (scene, image), each instance's object and visible fraction.
 fn ground_truth() -> BTreeMap<(u32, u32), Vec<(u32, f64)>> {
     let mut out = BTreeMap::new();
@@ -251,7 +254,7 @@ fn compare_and_inspect_targets(kind: Db) {
     };
     let (va, vb) = (eccv18_verdicts(&errors(a)), eccv18_verdicts(&errors(b)));
     let (mut both, mut only_a, mut only_b, mut neither, mut instances) = (0, 0, 0, 0, 0);
-    let mut expected: BTreeMap<Key, ((usize, Option<f64>), (usize, Option<f64>))> = BTreeMap::new();
+    let mut expected: BTreeMap<Key, (Found, Found)> = BTreeMap::new();
     for (key, &(n, fa, ea)) in &va {
         let (_, fb, eb) = vb[key];
         instances += n;
