@@ -95,7 +95,9 @@ pub fn valid_gts(image: &Image, targets: &[(u32, u32)], visib_gt_min: f64) -> Ve
 
 /// Matches the estimates of one (image, object), given in decreasing score order, and marks the
 /// matched instances in `matched` (indexed by gt id). `error` gives the normalised error of an
-/// estimate against the instance at position `i` of its `gt_ids`.
+/// estimate against the instance at position `i` of its `gt_ids`. Returns the matches as
+/// (position of the estimate in `ests`, gt id), for those who need to know which estimate
+/// found which instance (the outcomes of single targets), not only how many were found.
 pub fn match_image_object<'a>(
     ests: impl IntoIterator<Item = &'a EstimateErrors>,
     n_top: NTop,
@@ -103,12 +105,13 @@ pub fn match_image_object<'a>(
     valid: &[bool],
     matched: &mut [bool],
     error: impl Fn(&EstimateErrors, usize) -> f64,
-) {
+) -> Vec<(usize, usize)> {
     let limit = match n_top {
         NTop::Top(n) => n as usize,
         NTop::InstCount | NTop::All => usize::MAX,
     };
-    for est in ests.into_iter().take(limit) {
+    let mut matches = Vec::new();
+    for (position, est) in ests.into_iter().take(limit).enumerate() {
         let mut best: Option<usize> = None;
         let mut best_error = threshold;
         for (i, &gt_id) in est.gt_ids.iter().enumerate() {
@@ -124,8 +127,10 @@ pub fn match_image_object<'a>(
         }
         if let Some(g) = best {
             matched[g] = true;
+            matches.push((position, g));
         }
     }
+    matches
 }
 
 #[cfg(test)]
@@ -185,9 +190,10 @@ mod tests {
         let ests = [est(0.9, vec![0.2, 0.1]), est(0.8, vec![0.25, 0.05])];
         let mut matched = vec![false; 2];
         let err = |e: &EstimateErrors, i: usize| e.errors[0][i];
-        match_image_object(&ests, NTop::All, 0.3, &[true, true], &mut matched, err);
+        let matches = match_image_object(&ests, NTop::All, 0.3, &[true, true], &mut matched, err);
         // The first estimate takes gt 1 (0.1), the second gets gt 0 (0.25 < 0.3).
         assert_eq!(matched, vec![true, true]);
+        assert_eq!(matches, vec![(0, 1), (1, 0)]);
 
         let mut matched = vec![false; 2];
         match_image_object(&ests, NTop::All, 0.25, &[true, true], &mut matched, err);

@@ -10,7 +10,7 @@ use crate::dataset::Dataset;
 use crate::matching::{EstimateErrors, NTop};
 use crate::protocol::{Column, ErrorKind, Protocol, ProtocolName, normalised_error};
 use crate::results::Results;
-use crate::score::{Scored, ScoredImage, Scores, Targets};
+use crate::score::{Scored, ScoredImage, Scores, Targets, counted_instances};
 use crate::selection::Selection;
 use crate::stats::{mean, recall};
 
@@ -348,28 +348,15 @@ fn grouped_average_recall(
 }
 
 /// The instances the protocol targets, by visible fraction: those that count in the recall
-/// (`targets_count`), so the bins add up to its targets and true positives. Per image and
-/// object, those are its valid instances (visible at least `visib_gt_min`) up to n_top of them,
-/// as in the recall: the matched ones, then the most visible of the rest (ties: lower gt id).
+/// (`targets_count`, see `counted_instances`), so the bins add up to its targets and true
+/// positives.
 fn visib_bins(images: &[ScoredImage], matched: &[Vec<bool>], n_top: NTop) -> Vec<VisibBin> {
     let mut counts = [(0usize, 0usize); 10];
     for (im, m) in images.iter().zip(matched) {
-        let mut per_obj: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
-        for (gt_id, g) in im.gts.iter().enumerate().filter(|(_, g)| g.2) {
-            per_obj.entry(g.0).or_default().push(gt_id);
-        }
-        for mut gt_ids in per_obj.into_values() {
-            let targets = match n_top {
-                NTop::Top(n) => gt_ids.len().min(n as usize),
-                NTop::InstCount | NTop::All => gt_ids.len(),
-            };
-            // Stable: equal keys keep the lower gt id first.
-            gt_ids.sort_by(|&a, &b| m[b].cmp(&m[a]).then(im.gts[b].1.total_cmp(&im.gts[a].1)));
-            for &gt_id in &gt_ids[..targets] {
-                let bin = ((im.gts[gt_id].1 * 10.0).floor().max(0.0) as usize).min(9);
-                counts[bin].0 += 1;
-                counts[bin].1 += m[gt_id] as usize;
-            }
+        for gt_id in counted_instances(&im.gts, m, n_top) {
+            let bin = ((im.gts[gt_id].1 * 10.0).floor().max(0.0) as usize).min(9);
+            counts[bin].0 += 1;
+            counts[bin].1 += m[gt_id] as usize;
         }
     }
     counts

@@ -54,6 +54,33 @@ pub struct Scored {
     pub matched: Vec<Vec<bool>>,
 }
 
+/// The instances of one image that count as targets, given which were matched: per object,
+/// its valid instances up to n_top of them, the matched ones first, then the most visible of
+/// the rest (ties: the lower gt id). Every matched instance is among them, so the matched ones
+/// over these are the recall's true positives over its targets; the visibility curve and the
+/// outcomes of single targets both count these.
+pub fn counted_instances(gts: &[(u32, f64, bool)], matched: &[bool], n_top: NTop) -> Vec<usize> {
+    let mut per_obj: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    for (gt_id, g) in gts.iter().enumerate().filter(|(_, g)| g.2) {
+        per_obj.entry(g.0).or_default().push(gt_id);
+    }
+    let mut counted = Vec::new();
+    for mut gt_ids in per_obj.into_values() {
+        let targets = match n_top {
+            NTop::Top(n) => gt_ids.len().min(n as usize),
+            NTop::InstCount | NTop::All => gt_ids.len(),
+        };
+        // Stable: equal keys keep the lower gt id first.
+        gt_ids.sort_by(|&a, &b| {
+            matched[b]
+                .cmp(&matched[a])
+                .then(gts[b].1.total_cmp(&gts[a].1))
+        });
+        counted.extend_from_slice(&gt_ids[..targets]);
+    }
+    counted
+}
+
 /// Scores at one threshold. `object_ids` and `scene_ids` are every object and scene of the
 /// dataset: like the reference, one without targets reports recall 0 and counts in the means.
 pub fn localization_scores(

@@ -30,6 +30,7 @@ pub mod serve;
 pub mod shutdown;
 pub mod store;
 pub mod submissions;
+pub mod targets;
 pub mod uploaded_file;
 pub mod views;
 pub mod wording;

@@ -11,6 +11,7 @@ pub mod ops;
 pub mod pages;
 pub mod snapshots;
 pub mod submissions;
+pub mod targets;
 
 use axum::Router;
 use axum::http::{HeaderValue, header};
@@ -57,11 +58,13 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(account::router())
         .merge(docs::router())
         .merge(snapshots::page_router())
+        .merge(targets::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
         .merge(snapshots::api_router())
+        .merge(targets::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

@@ -440,14 +440,20 @@ impl OwnerLinks {
     }
 }
 
-/// A submission as `viewer` may see it: a private one answers as missing to everyone but its
-/// owner and the admins, exactly like one that does not exist.
-pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
+/// Submission `id` if `viewer` may see it: a private one answers as missing to everyone but
+/// its owner and the admins, exactly like one that does not exist.
+pub async fn visible_submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionRow> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    let manages = viewer.can_see(submission.owner_id);
-    if !submission.is_public() && !manages {
+    if !submission.is_public() && !viewer.can_see(submission.owner_id) {
         return Err(AppError::NotFound);
     }
+    Ok(submission)
+}
+
+/// A submission as `viewer` may see it (see [`visible_submission`]).
+pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
+    let submission = visible_submission(app, id, viewer).await?;
+    let manages = viewer.can_see(submission.owner_id);
     let speed = crate::submissions::speed(app).await?;
     let now = now_ms();
     let (queue, eta_seconds, progress_text) = match submission.status {

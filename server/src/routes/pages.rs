@@ -28,6 +28,7 @@ use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
 use crate::store::submissions::{Fault, SubmissionRow};
 use crate::submissions;
+use crate::targets;
 use crate::views::{self, BoardFilter, Leaderboard, MySubmissions, SubmissionView};
 use crate::{methods, publishing};
 
@@ -316,6 +317,8 @@ struct SubmissionPage {
     /// For its owner's (or an administrator's) browser: the CSRF token of the pin, publish,
     /// withdraw and delete buttons.
     owner_csrf: Option<String>,
+    /// The submissions it can be compared with (finished, on its dataset).
+    compare_with: Vec<targets::Named>,
 }
 
 async fn submission(
@@ -324,7 +327,9 @@ async fn submission(
     Path(id): Path<i64>,
 ) -> AppResult<SubmissionPage> {
     let view = views::submission(&app, id, &viewer).await?;
+    let compare_with = targets::comparable(&app, &view.submission, &viewer).await?;
     Ok(SubmissionPage {
+        compare_with,
         bop19: view.scores.get(&ProtocolName::Bop19).cloned(),
         eccv18: view.scores.get(&ProtocolName::Eccv18).cloned(),
         owner_csrf: viewer

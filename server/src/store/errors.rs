@@ -7,7 +7,8 @@
 use std::collections::BTreeMap;
 use std::io::Read;
 
-use evaluator::protocol::ProtocolName;
+use evaluator::matching::EstimateErrors;
+use evaluator::protocol::{Protocol, ProtocolName, columns};
 use flate2::read::GzDecoder;
 use serde::{Deserialize, Serialize};
 use sqlx::Row;
@@ -53,6 +54,38 @@ impl StoredErrors {
     /// The rows, typed.
     pub fn rows(&self) -> StoreResult<Vec<ErrorRow>> {
         serde_json::from_slice(&self.json()?).map_err(|e| self.corrupt(e.to_string()))
+    }
+
+    /// The rows as the evaluator's type, with the errors in the columns of `protocol` (the
+    /// one they were computed under): what the outcomes of single targets are made from.
+    pub fn estimates(&self, protocol: &Protocol) -> StoreResult<Vec<EstimateErrors>> {
+        let columns = columns(protocol);
+        self.rows()?
+            .into_iter()
+            .map(|mut r| {
+                let errors = columns
+                    .iter()
+                    .map(|c| {
+                        let values = r.errors.remove(&c.signature).ok_or_else(|| {
+                            self.corrupt(format!("no errors under {}", c.signature))
+                        })?;
+                        Ok(values
+                            .into_iter()
+                            .map(|v| v.unwrap_or(f64::INFINITY))
+                            .collect())
+                    })
+                    .collect::<StoreResult<_>>()?;
+                Ok(EstimateErrors {
+                    scene_id: r.scene_id,
+                    im_id: r.im_id,
+                    obj_id: r.obj_id,
+                    est_id: r.est_id,
+                    score: r.score,
+                    gt_ids: r.gt_ids,
+                    errors,
+                })
+            })
+            .collect()
     }
 
     fn corrupt(&self, reason: String) -> StoreError {

@@ -425,6 +425,30 @@ impl Store {
         Ok((work > 0 && ms > 0).then(|| work as f64 * 1000.0 / ms as f64))
     }
 
+    /// The finished submissions on a dataset that `viewer` may see (the public ones and its
+    /// own), but `except`, newest first, at most `limit`: what a submission can be compared with.
+    pub async fn finished_on_dataset(
+        &self,
+        dataset_id: i64,
+        except: i64,
+        viewer: Option<i64>,
+        limit: i64,
+    ) -> StoreResult<Vec<SubmissionRow>> {
+        let sql = format!(
+            "SELECT {SUBMISSION_COLUMNS} WHERE s.dataset_id = $1 AND s.id <> $2 \
+             AND s.status = 'done' AND ((s.public = 1 AND s.hidden = 0) OR s.owner_id = $3) \
+             ORDER BY s.id DESC LIMIT $4"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(dataset_id)
+            .bind(except)
+            .bind(viewer.unwrap_or(-1))
+            .bind(limit)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(submission).collect()
+    }
+
     /// Every submission of `owner`, private and hidden ones included, newest first.
     pub async fn submissions_of_owner(&self, owner: i64) -> StoreResult<Vec<SubmissionRow>> {
         let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.owner_id = $1 ORDER BY s.id DESC");
