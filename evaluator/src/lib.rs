@@ -15,6 +15,7 @@ pub mod error;
 pub mod matching;
 pub mod math;
 pub mod mesh;
+pub mod overlay;
 pub mod pipeline;
 pub mod ply;
 pub mod pose_error;
