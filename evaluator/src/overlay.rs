@@ -110,7 +110,7 @@ pub fn silhouette(
 
 /// `base` seen through a half-transparent `colour` (rounded half up).
 pub fn tint(base: [u8; 3], colour: [u8; 3]) -> [u8; 3] {
-    std::array::from_fn(|c| ((u16::from(base[c]) + u16::from(colour[c]) + 1) / 2) as u8)
+    std::array::from_fn(|c| (u16::from(base[c]) + u16::from(colour[c])).div_ceil(2) as u8)
 }
 
 /// `image` with the silhouettes drawn over it (see the module documentation); every mask must

@@ -198,10 +198,13 @@ pub fn tex_escape(s: &str) -> String {
     out
 }
 
+/// A cell of the LaTeX table as shown, from its row (`None`: no value).
+type Cell<'a> = Box<dyn Fn(&BoardRow) -> Option<String> + 'a>;
+
 /// A column of the LaTeX table: its heading, its value in a row, and whether lower is better.
 struct Column<'a> {
     heading: String,
-    value: Box<dyn Fn(&BoardRow) -> Option<String> + 'a>,
+    value: Cell<'a>,
     lower_is_better: bool,
 }
 
