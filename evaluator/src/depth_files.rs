@@ -248,7 +248,7 @@ impl DepthFile {
 /// uses expands more than this.
 const MAX_TIFF_RATIO: u64 = 4096;
 
-fn tiff_error(path: &Path, e: tiff::TiffError) -> Error {
+pub(crate) fn tiff_error(path: &Path, e: tiff::TiffError) -> Error {
     match e {
         // The decoder reads offsets the file states: running out of bytes is a broken file,
         // not a failing disk.
@@ -263,7 +263,7 @@ fn tiff_error(path: &Path, e: tiff::TiffError) -> Error {
     }
 }
 
-fn tiff_decoder(path: &Path) -> Result<tiff::decoder::Decoder<BufReader<File>>> {
+pub(crate) fn tiff_decoder(path: &Path) -> Result<tiff::decoder::Decoder<BufReader<File>>> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut limits = tiff::decoder::Limits::default();

@@ -16,6 +16,7 @@ pub mod matching;
 pub mod math;
 pub mod mesh;
 pub mod outcomes;
+pub mod overlay;
 pub mod pipeline;
 pub mod ply;
 pub mod pose_error;

@@ -4,7 +4,7 @@
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 
-use crate::dataset::Dataset;
+use crate::dataset::{Dataset, Target};
 use crate::matching::NTop;
 use crate::results::Results;
 
@@ -117,17 +117,7 @@ pub(crate) fn select_estimates(dataset: &Dataset, results: &Results, n_top: NTop
         if idx.is_empty() {
             continue;
         }
-        // est_id is the position among the rows of the (scene, image, object).
-        let mut sorted: Vec<(usize, u32)> = idx
-            .iter()
-            .enumerate()
-            .map(|(est_id, &i)| (i, est_id as u32))
-            .collect();
-        sorted.sort_by(|a, b| {
-            let (sa, sb) = (results.estimates[a.0].score, results.estimates[b.0].score);
-            sb.partial_cmp(&sa).unwrap_or(std::cmp::Ordering::Equal)
-        });
-        sorted.truncate(n_top.keep(inst_count));
+        let sorted = top(results, idx, n_top.keep(inst_count));
         evaluated += sorted.len();
         work.estimates.push((obj_id, sorted));
     }
@@ -137,4 +127,38 @@ pub(crate) fn select_estimates(dataset: &Dataset, results: &Results, n_top: NTop
         ignored: coverage.estimates_ignored,
         targets_without_estimate: coverage.targets_without_estimate,
     }
+}
+
+/// The first `keep` of a target's rows `idx` (indices into the results, in file order) by
+/// decreasing score, ties in file order, as Python's `sorted(reverse=True)` keeps them; each
+/// with its est_id, the position among the target's rows.
+fn top(results: &Results, idx: &[usize], keep: usize) -> Vec<(usize, u32)> {
+    let mut sorted: Vec<(usize, u32)> = idx
+        .iter()
+        .enumerate()
+        .map(|(est_id, &i)| (i, est_id as u32))
+        .collect();
+    sorted.sort_by(|a, b| {
+        let (sa, sb) = (results.estimates[a.0].score, results.estimates[b.0].score);
+        sb.partial_cmp(&sa).unwrap_or(std::cmp::Ordering::Equal)
+    });
+    sorted.truncate(keep);
+    sorted
+}
+
+/// The estimates (indices into the results) the evaluation of `target` considers under
+/// `n_top`, in decreasing score order.
+pub fn target_estimates(results: &Results, target: &Target, n_top: NTop) -> Vec<usize> {
+    let key = (target.scene_id, target.im_id, target.obj_id);
+    let idx: Vec<usize> = results
+        .estimates
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| (e.scene_id, e.im_id, e.obj_id) == key)
+        .map(|(i, _)| i)
+        .collect();
+    top(results, &idx, n_top.keep(target.inst_count))
+        .into_iter()
+        .map(|(i, _)| i)
+        .collect()
 }

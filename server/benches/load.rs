@@ -506,6 +506,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
                     reports: scaled(reports, f),
                     errors: Vec::new(),
                     eval_ms: 1000,
+                    dataset_hash: "load-bench".to_string(),
                 },
             )
             .await?;

@@ -396,7 +396,7 @@ impl Worker {
                 .await
                 .map_err(|e| JobError::Service(e.to_string()))?;
 
-        let dataset = loaded.dataset;
+        let (dataset, dataset_hash) = (loaded.dataset, loaded.content_hash);
         let protocols: Vec<ProtocolName> = job.protocols.clone();
         let (counter, started, cancel, taken) = (
             state.counter.clone(),
@@ -431,6 +431,7 @@ impl Worker {
                     reports,
                     errors,
                     eval_ms: clock.elapsed().as_millis() as i64,
+                    dataset_hash,
                 })
             })
         })

@@ -11,6 +11,13 @@ pub fn document() -> Value {
 fn paths() -> Value {
     let id_param =
         json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
+    let export_params = json!([
+        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
+        { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
+        { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
+        { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
+        { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
+    ]);
     json!({
         "openapi": "3.1.0",
         "info": {
@@ -156,6 +163,22 @@ fn paths() -> Value {
                     { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
                 ],
                 "responses": { "200": { "description": "{protocol, parameters, datasets, core, columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, scores per dataset ({submission_id, score, ..., pinned}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/submissions/{id}/targets/{scene_id}/{im_id}/{obj_id}.png": { "get": { "summary": "A target seen through a submission: the test image (RGB, else gray, else the depth image) with the object's ground-truth silhouettes (green tint, green outline) and the silhouettes of the submission's estimates its evaluation considered (the first n_top by score; magenta tint, magenta outline, drawn on top), rendered by the evaluator's renderer",
+                "parameters": [id_param,
+                    { "name": "scene_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "im_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "obj_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18"] }, "description": "whose n_top decides the estimates drawn; the submission's first protocol by default" }],
+                "responses": { "200": { "description": "image/png" }, "404": { "description": "no such submission (or a private one of another account), no such test target of its dataset, or a protocol it was not submitted for" } } } },
+            "/leaderboards/{protocol}/export.csv": { "get": { "summary": "Every row of a leaderboard as CSV (a download): rank, method, owner, training data, input, hardware; per dataset shown its score, the breakdowns, time, submission and the score's reproducibility record (evaluator version, protocol, parameters as JSON, dataset content hash, result file SHA-256); average, mean, covered, time; per object with `dataset`. Scores as fractions",
+                "parameters": export_params.clone(),
+                "responses": { "200": { "description": "text/csv" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/leaderboards/{protocol}/export.json": { "get": { "summary": "Every row of a leaderboard as JSON (a download): {protocol, score_name, time_unit, parameters, dataset, columns, rows}; the rows are those of /api/v1/leaderboards/{protocol}, each score with its `record`",
+                "parameters": export_params.clone(),
+                "responses": { "200": { "description": "application/json" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/leaderboards/{protocol}/export.tex": { "get": { "summary": "A leaderboard as a complete LaTeX `tabular` in the ECCV'18 paper's layout (needs booktabs): methods by rows; the datasets (with `dataset`: the objects, then the dataset), the average and the time as columns, scores in %, the best of each column in bold; the reproducibility records follow as comment lines",
+                "parameters": export_params,
+                "responses": { "200": { "description": "application/x-tex" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
             "/api/v1/snapshots": { "get": { "summary": "Dated snapshots of the leaderboards, newest first",
                 "responses": { "200": { "description": "{snapshots: [{id, taken_at (epoch ms), taken_by, url, boards: [{protocol, dataset (empty: all datasets), url, json_url}]}]}" } } } },
             "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",

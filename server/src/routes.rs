@@ -6,6 +6,7 @@ pub mod api;
 pub mod boards;
 pub mod deadlines;
 pub mod docs;
+pub mod exports;
 pub mod limits;
 pub mod ops;
 pub mod pages;
@@ -59,6 +60,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(docs::router())
         .merge(snapshots::page_router())
         .merge(targets::page_router())
+        .merge(exports::router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()

@@ -19,7 +19,7 @@ use crate::preflight::Preflight;
 use crate::publishing;
 use crate::store::accounts::User;
 use crate::store::datasets::DatasetRow;
-use crate::store::scores::BoardEntry;
+use crate::store::scores::{BoardEntry, ScoreRecord};
 use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
 use crate::wording;
 
@@ -34,6 +34,8 @@ pub struct Cell {
     pub time: Option<f64>,
     /// The method's owner pinned this submission as its entry (otherwise it is the best).
     pub pinned: bool,
+    /// How the score can be reproduced.
+    pub record: ScoreRecord,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -99,6 +101,11 @@ pub struct BoardFilter {
 }
 
 impl BoardFilter {
+    /// The query string of this filter as it stands (for the links to the board's exports).
+    pub fn query(&self) -> String {
+        self.with("", "")
+    }
+
     /// The query string that keeps this filter but changes one key (for links on the page).
     pub fn with(&self, key: &str, value: &str) -> String {
         let mut pairs: Vec<(&str, String)> = Vec::new();
@@ -358,6 +365,7 @@ fn cell(e: &BoardEntry) -> Cell {
         ar_mspd: e.score.ar_mspd,
         time: e.score.time_avg,
         pinned: e.pinned,
+        record: e.score.record.clone(),
     }
 }
 
@@ -382,6 +390,8 @@ pub struct SubmissionView {
     pub preflight_text: String,
     /// Per protocol, the full report (the same keys as `poseboard eval --out`).
     pub scores: BTreeMap<ProtocolName, Report>,
+    /// Per protocol scored, how the score can be reproduced.
+    pub records: BTreeMap<ProtocolName, ScoreRecord>,
     /// Per protocol with a public entry: the method's entry on this dataset, and whether it is
     /// this submission.
     pub entries: Vec<EntryStatus>,
@@ -484,6 +494,7 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
         Status::Done | Status::Failed => (None, None, None),
     };
     let reports = app.store.reports_of_submission(id).await?;
+    let records = app.store.score_records(id).await?;
     let charts = reports.iter().flat_map(crate::chart::charts).collect();
     let entries = app
         .store
@@ -510,6 +521,7 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
         owner: manages.then(|| OwnerLinks::of(&submission)),
         submission,
         scores: reports.into_iter().map(|r| (r.protocol, r)).collect(),
+        records: records.into_iter().map(|r| (r.protocol, r)).collect(),
         charts,
     })
 }

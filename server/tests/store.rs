@@ -163,6 +163,7 @@ fn finished(protocols: &[ProtocolName]) -> (Finished, Vec<serde_json::Value>) {
         reports,
         errors,
         eval_ms: 1000,
+        dataset_hash: "store-test".to_string(),
     };
     (done, first_rows)
 }

@@ -18,6 +18,7 @@ use crate::auth::Viewer;
 use crate::board_cache::Format;
 use crate::domain::{MethodForm, Visibility};
 use crate::error::{AppError, AppResult};
+use crate::overlay::{self, TargetId};
 use crate::routes::boards;
 use crate::routes::deadlines;
 use crate::routes::submissions::read_upload;
@@ -49,6 +50,10 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/api/v1/submissions/{id}/file", get(file))
         .route("/api/v1/submissions/{id}/report", get(report))
         .route("/api/v1/submissions/{id}/errors/{protocol}", get(errors))
+        .route(
+            "/api/v1/submissions/{id}/targets/{scene}/{im}/{picture}",
+            get(target_picture),
+        )
         .route("/api/v1/me/submissions", get(my_submissions))
         .route("/api/v1/leaderboards/{protocol}", get(leaderboard))
         .route("/api/v1/openapi.json", get(openapi))
@@ -281,8 +286,43 @@ async fn errors(
     ))
 }
 
+/// Which protocol's n_top decides the estimates a target picture shows.
+#[derive(Deserialize)]
+struct PictureQuery {
+    protocol: Option<String>,
+}
+
+/// A target seen through a submission, as `{obj_id}.png` (the router cannot match a segment
+/// that only starts with a parameter): for whoever may see the submission.
+async fn target_picture(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, scene_id, im_id, picture)): Path<(i64, u32, u32, String)>,
+    Query(q): Query<PictureQuery>,
+) -> AppResult<Response> {
+    let obj_id = picture
+        .strip_suffix(".png")
+        .and_then(|o| o.parse::<u32>().ok())
+        .ok_or(AppError::NotFound)?;
+    let protocol = q
+        .protocol
+        .map(|p| ProtocolName::from_str(&p).map_err(|_| AppError::NotFound))
+        .transpose()?;
+    let target = TargetId {
+        scene_id,
+        im_id,
+        obj_id,
+    };
+    let png = overlay::target_png(&app, &viewer, id, target, protocol).await?;
+    Ok((
+        [(header::CONTENT_TYPE, HeaderValue::from_static("image/png"))],
+        png,
+    )
+        .into_response())
+}
+
 /// A download: its type, and the name a browser saves it under (plain ASCII, no quotes).
-fn attachment(content_type: &'static str, name: &str, body: Vec<u8>) -> Response {
+pub(crate) fn attachment(content_type: &'static str, name: &str, body: Vec<u8>) -> Response {
     let safe: String = name
         .chars()
         .map(|c| {

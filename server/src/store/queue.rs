@@ -22,6 +22,9 @@ pub struct Finished {
     /// How long the evaluation took: with the estimates it evaluated, the speed of this
     /// service that waiting times are estimated from.
     pub eval_ms: i64,
+    /// The content hash of the dataset copy the scores were computed on (the scores'
+    /// reproducibility record).
+    pub dataset_hash: String,
 }
 
 impl Store {
@@ -159,11 +162,17 @@ impl Store {
                 column: "report_json",
                 value: e.to_string(),
             })?;
+            let parameters =
+                serde_json::to_string(&report.parameters).map_err(|e| StoreError::Corrupt {
+                    column: "parameters_json",
+                    value: e.to_string(),
+                })?;
             let row = sqlx::query(
                 "INSERT INTO scores (submission_id, protocol, score, recall, ar_vsd, ar_mssd, \
                  ar_mspd, time_avg, targets_count, tp_count, estimates_evaluated, estimates_ignored, \
-                 report_json, created_at) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14) RETURNING id",
+                 report_json, created_at, evaluator_version, parameters_json, dataset_hash) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17) \
+                 RETURNING id",
             )
             // The optional columns are NULL for one protocol and numbers for the other; a
             // cached statement would keep the parameter types of its first use.
@@ -182,6 +191,9 @@ impl Store {
             .bind(report.estimates_ignored as i64)
             .bind(json)
             .bind(now)
+            .bind(&report.evaluator_version)
+            .bind(parameters)
+            .bind(&finished.dataset_hash)
             .fetch_one(&mut *tx)
             .await?;
             let score_id: i64 = row.try_get("id")?;

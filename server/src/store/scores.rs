@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 
 use evaluator::Report;
 use evaluator::protocol::ProtocolName;
+use evaluator::report::Parameters;
 use serde::Serialize;
 use sqlx::Row;
 use sqlx::any::AnyRow;
@@ -28,7 +29,28 @@ pub struct ScoreRow {
     pub time_avg: Option<f64>,
     pub estimates_evaluated: i64,
     pub estimates_ignored: i64,
+    pub record: ScoreRecord,
 }
+
+/// What it takes to reproduce a score: the evaluator, the protocol with its parameters, and
+/// the content hashes of the two inputs. Scores stored before records were kept have no
+/// dataset hash (the worker's copy was not recorded then).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ScoreRecord {
+    pub evaluator_version: Option<String>,
+    pub protocol: ProtocolName,
+    pub parameters: Option<Parameters>,
+    /// The content hash of the dataset copy the score was computed on.
+    pub dataset_hash: Option<String>,
+    /// SHA-256 of the uploaded result file.
+    pub file_sha256: String,
+}
+
+/// The columns [`score`] reads, for a query joining `scores sc` and `submissions s`.
+const SCORE_COLUMNS: &str = "sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, \
+     sc.recall, sc.ar_vsd, sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, \
+     sc.estimates_ignored, sc.evaluator_version, sc.parameters_json, sc.dataset_hash, \
+     s.file_sha256";
 
 /// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -83,10 +105,20 @@ const PINNED_SQL: &str = "CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p \
      WHERE p.submission_id = s.id) THEN 1 ELSE 0 END AS BIGINT)";
 
 fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
+    let protocol = parse_column("protocol", row.try_get("protocol")?)?;
+    let parameters = row
+        .try_get::<Option<String>, _>("parameters_json")?
+        .map(|json| {
+            serde_json::from_str(&json).map_err(|_| StoreError::Corrupt {
+                column: "parameters_json",
+                value: json,
+            })
+        })
+        .transpose()?;
     Ok(ScoreRow {
         id: row.try_get("score_id")?,
         submission_id: row.try_get("submission_id")?,
-        protocol: parse_column("protocol", row.try_get("protocol")?)?,
+        protocol,
         score: row.try_get("score")?,
         recall: row.try_get("recall")?,
         ar_vsd: row.try_get("ar_vsd")?,
@@ -95,22 +127,41 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
         time_avg: row.try_get("time_avg")?,
         estimates_evaluated: row.try_get("estimates_evaluated")?,
         estimates_ignored: row.try_get("estimates_ignored")?,
+        record: ScoreRecord {
+            evaluator_version: row.try_get("evaluator_version")?,
+            protocol,
+            parameters,
+            dataset_hash: row.try_get("dataset_hash")?,
+            file_sha256: row.try_get("file_sha256")?,
+        },
     })
 }
 
 impl Store {
     /// The headline scores of every submission of `owner`, by submission, then protocol.
     pub async fn scores_of_owner(&self, owner: i64) -> StoreResult<Vec<ScoreRow>> {
-        let rows = sqlx::query(
-            "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, \
-             sc.ar_vsd, sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, \
-             sc.estimates_ignored FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
-             WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol",
-        )
-        .bind(owner)
-        .fetch_all(&self.pool)
-        .await?;
+        let sql = format!(
+            "SELECT {SCORE_COLUMNS} FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
+             WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(owner)
+            .fetch_all(&self.pool)
+            .await?;
         rows.iter().map(score).collect()
+    }
+
+    /// The reproducibility records of a submission's scores, one per protocol.
+    pub async fn score_records(&self, id: i64) -> StoreResult<Vec<ScoreRecord>> {
+        let sql = format!(
+            "SELECT {SCORE_COLUMNS} FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
+             WHERE sc.submission_id = $1 ORDER BY sc.protocol"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(id)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(|r| Ok(score(r)?.record)).collect()
     }
 
     /// The reports of a submission, one per protocol it was evaluated under.
@@ -140,9 +191,7 @@ impl Store {
         dataset_id: Option<i64>,
     ) -> StoreResult<Vec<BoardEntry>> {
         let sql = format!(
-            "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, sc.ar_vsd, \
-             sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, sc.estimates_ignored, \
-             s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
+            "SELECT {SCORE_COLUMNS}, s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
              m.modality, m.hardware, s.dataset_id, d.name AS dataset, s.finished_at, \
              {PINNED_SQL} AS pinned, os.obj_id, os.value AS obj_value \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \

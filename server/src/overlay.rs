@@ -1,0 +1,85 @@
+//! The picture of a target seen through a submission (see `evaluator::overlay` for what it
+//! shows and its colours), as a PNG. The estimates are read from the stored upload, as the
+//! worker read them, and the picture is drawn and encoded on the evaluation threads.
+
+use evaluator::overlay::{RgbImage, target_picture};
+use evaluator::protocol::{Protocol, ProtocolName};
+use evaluator::results;
+
+use crate::app::App;
+use crate::auth::Viewer;
+use crate::error::{AppError, AppResult};
+use crate::uploaded_file;
+
+/// A test target: (scene_id, im_id, obj_id).
+#[derive(Clone, Copy, Debug)]
+pub struct TargetId {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub obj_id: u32,
+}
+
+/// The PNG of `target` for submission `id` as `viewer` may see it: a private submission of
+/// another account, a target its dataset does not have, or a protocol it was not submitted for
+/// answer as missing. The estimates drawn are those the evaluation under `protocol` considers
+/// (its n_top); without one, under the submission's first protocol.
+pub async fn target_png(
+    app: &App,
+    viewer: &Viewer,
+    id: i64,
+    target: TargetId,
+    protocol: Option<ProtocolName>,
+) -> AppResult<Vec<u8>> {
+    let s = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
+    if !s.is_public() && !viewer.can_see(s.owner_id) {
+        return Err(AppError::NotFound);
+    }
+    let protocol = match protocol {
+        Some(p) if s.protocols.contains(&p) => p,
+        Some(_) => return Err(AppError::NotFound),
+        None => *s.protocols.first().ok_or(AppError::NotFound)?,
+    };
+    let row = app
+        .store
+        .dataset(s.dataset_id)
+        .await?
+        .ok_or(AppError::NotFound)?;
+    let dataset = app.dataset(&row).await?;
+    let found = dataset
+        .targets
+        .iter()
+        .find(|t| (t.scene_id, t.im_id, t.obj_id) == (target.scene_id, target.im_id, target.obj_id))
+        .copied()
+        .ok_or(AppError::NotFound)?;
+    let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
+        .await
+        .map_err(|e| AppError::Internal(e.to_string()))?;
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    app.pool.spawn(move || {
+        let picture = results::parse_results(&bytes[..])
+            .map_err(|p| AppError::Internal(format!("the stored file no longer parses: {p}")))
+            .and_then(|results| {
+                let n_top = Protocol::named(protocol).n_top;
+                target_picture(&dataset, &results, &found, n_top)
+                    .map_err(|e| AppError::Internal(e.to_string()))
+            })
+            .and_then(|picture| encode(&picture));
+        let _ = tx.send(picture);
+    });
+    rx.await
+        .map_err(|_| AppError::Internal("drawing the picture crashed".into()))?
+}
+
+/// An 8-bit RGB PNG, compressed fast: it is drawn on request.
+fn encode(image: &RgbImage) -> AppResult<Vec<u8>> {
+    let failed = |e: png::EncodingError| AppError::Internal(format!("PNG: {e}"));
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().map_err(failed)?;
+    writer.write_image_data(&image.data).map_err(failed)?;
+    writer.finish().map_err(failed)?;
+    Ok(out)
+}
