@@ -48,10 +48,13 @@ fn id_keyed<'de, D: Deserializer<'de>>(d: D) -> Result<BTreeMap<u32, f64>, D::Er
 }
 
 /// Everything matching produced for one threshold: the scores and, per image and gt id,
-/// whether the instance was matched (for the recall-vs-visibility curve).
+/// whether the instance was matched (for the recall-vs-visibility curve), and per image its
+/// targets and true positives (what the recall sums, for the bootstrap of [`crate::bootstrap`]).
 pub struct Scored {
     pub scores: Scores,
     pub matched: Vec<Vec<bool>>,
+    pub image_targets: Vec<u32>,
+    pub image_tps: Vec<u32>,
 }
 
 /// Scores at one threshold. `object_ids` and `scene_ids` are every object and scene of the
@@ -71,6 +74,8 @@ pub fn localization_scores(
     let mut scene_tps = scene_targets.clone();
     let (mut targets, mut tps, mut gt_count) = (0usize, 0usize, 0usize);
     let mut all_matched = Vec::with_capacity(images.len());
+    let mut image_targets = Vec::with_capacity(images.len());
+    let mut image_tps = Vec::with_capacity(images.len());
 
     for im in images {
         gt_count += im.gts.len();
@@ -86,6 +91,7 @@ pub fn localization_scores(
                 error,
             );
         }
+        let (targets_before, tps_before) = (targets, tps);
         // Targets: per object of the image, its valid instances, at most n_top of them.
         let mut per_obj: BTreeMap<u32, usize> = BTreeMap::new();
         for g in im.gts.iter().filter(|g| g.2) {
@@ -106,6 +112,8 @@ pub fn localization_scores(
             *scene_tps.entry(im.scene_id).or_default() += 1;
         }
         all_matched.push(matched);
+        image_targets.push((targets - targets_before) as u32);
+        image_tps.push((tps - tps_before) as u32);
     }
 
     let obj_recalls: BTreeMap<u32, f64> = obj_targets
@@ -128,5 +136,7 @@ pub fn localization_scores(
             tp_count: tps,
         },
         matched: all_matched,
+        image_targets,
+        image_tps,
     }
 }
