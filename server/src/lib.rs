@@ -25,6 +25,7 @@ pub mod openapi;
 pub mod ops;
 pub mod preflight;
 pub mod publishing;
+pub mod rescoring;
 pub mod routes;
 pub mod serve;
 pub mod shutdown;

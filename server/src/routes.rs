@@ -9,6 +9,7 @@ pub mod docs;
 pub mod limits;
 pub mod ops;
 pub mod pages;
+pub mod rescoring;
 pub mod snapshots;
 pub mod submissions;
 
@@ -57,11 +58,13 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(account::router())
         .merge(docs::router())
         .merge(snapshots::page_router())
+        .merge(rescoring::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
         .merge(snapshots::api_router())
+        .merge(rescoring::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

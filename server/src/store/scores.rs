@@ -11,6 +11,7 @@ use sqlx::Row;
 use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
+use super::queue::replicates_from;
 use super::{Store, StoreError, StoreResult, parse_column};
 use crate::domain::{Modality, TrainingData};
 
@@ -28,6 +29,8 @@ pub struct ScoreRow {
     pub time_avg: Option<f64>,
     pub estimates_evaluated: i64,
     pub estimates_ignored: i64,
+    /// The bootstrap 95 % interval of `score`, for scores stored with replicates.
+    pub ci95: Option<[f64; 2]>,
 }
 
 /// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
@@ -95,6 +98,10 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
         time_avg: row.try_get("time_avg")?,
         estimates_evaluated: row.try_get("estimates_evaluated")?,
         estimates_ignored: row.try_get("estimates_ignored")?,
+        ci95: match (row.try_get("ci_low")?, row.try_get("ci_high")?) {
+            (Some(low), Some(high)) => Some([low, high]),
+            _ => None,
+        },
     })
 }
 
@@ -104,7 +111,8 @@ impl Store {
         let rows = sqlx::query(
             "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, \
              sc.ar_vsd, sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, \
-             sc.estimates_ignored FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
+             sc.estimates_ignored, sc.ci_low, sc.ci_high \
+             FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol",
         )
         .bind(owner)
@@ -142,7 +150,7 @@ impl Store {
         let sql = format!(
             "SELECT sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, sc.recall, sc.ar_vsd, \
              sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, sc.estimates_ignored, \
-             s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
+             sc.ci_low, sc.ci_high, s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
              m.modality, m.hardware, s.dataset_id, d.name AS dataset, s.finished_at, \
              {PINNED_SQL} AS pinned, os.obj_id, os.value AS obj_value \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
@@ -190,6 +198,35 @@ impl Store {
             }
         }
         Ok(entries)
+    }
+
+    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id.
+    pub async fn replicates(&self, ids: &[i64]) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
+        let mut out = BTreeMap::new();
+        // In slices, so that no statement has more parameters than a database takes.
+        for chunk in ids.chunks(500) {
+            let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
+            // Only the placeholders' count comes from the caller.
+            let sql = format!(
+                "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN ({})",
+                marks.join(", ")
+            );
+            let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
+            for id in chunk {
+                query = query.bind(*id);
+            }
+            for r in query.fetch_all(&self.pool).await? {
+                let bytes: Vec<u8> = r.try_get("replicates")?;
+                let values = replicates_from(&bytes).ok_or(StoreError::Corrupt {
+                    column: "replicates",
+                    value: format!("{} bytes", bytes.len()),
+                })?;
+                if !values.is_empty() {
+                    out.insert(r.try_get("id")?, values);
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The entries, per protocol, of a method on a dataset.
