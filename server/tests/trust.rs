@@ -99,8 +99,23 @@ fn trust_over_time(kind: Db) {
         ],
         &results.join("noisesmall_synthA-test.csv"),
     ));
-    for id in [alpha_a, alpha_b, gamma_a, beta_private] {
+    for id in [alpha_a, alpha_b, gamma_a] {
         wait_done(&base, id, WAIT);
+    }
+    // The private one, as its owner follows it.
+    let started = Instant::now();
+    loop {
+        let s: Value = get_as(
+            &format!("{base}/api/v1/submissions/{beta_private}"),
+            &server.token,
+        )
+        .json()
+        .expect("json");
+        if s["status"] == "done" {
+            break;
+        }
+        assert!(s["status"] != "failed" && started.elapsed() < WAIT, "{s}");
+        std::thread::sleep(Duration::from_millis(100));
     }
 
     // Intervals on every score and average, the same on every read.
