@@ -7,6 +7,7 @@
 //! A pure library: no HTTP, no database, no global state. Parallelism runs on the caller's
 //! rayon pool, so a service can bound it.
 
+pub mod bootstrap;
 pub mod coco;
 pub mod dataset;
 pub mod depth_files;

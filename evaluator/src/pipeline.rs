@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
+use crate::bootstrap::{self, Bootstrap, ImageCounts};
 use crate::dataset::{Dataset, Image};
 use crate::error::{Error, Result};
 use crate::matching::{EstimateErrors, valid_gts};
@@ -42,9 +43,19 @@ pub struct Evaluation {
     pub errors: Vec<EstimateErrors>,
     /// The target images as matched, to score the errors at other thresholds.
     pub images: Vec<ScoredImage>,
+    /// Per target image, what the headline score sums: what a bootstrap resamples.
+    pub counts: ImageCounts,
 }
 
 impl Evaluation {
+    /// Bootstrap replicates of the headline score (see [`crate::bootstrap`]), recorded in the
+    /// report's `bootstrap`; `None` when there is nothing to resample.
+    pub fn bootstrap(&mut self, seed: u64, replicates: usize) -> Option<Bootstrap> {
+        let b = bootstrap::bootstrap(&self.counts, seed, replicates)?;
+        self.report.bootstrap = Some(b.summary());
+        Some(b)
+    }
+
     /// Every evaluated estimate with its errors against each ground-truth instance of its
     /// object, keyed by bop_toolkit's error signature: the layout of `--errors-out`.
     pub fn error_rows(&self) -> Vec<serde_json::Value> {
@@ -155,7 +166,7 @@ pub fn evaluate(
         });
     }
 
-    let report = report::build(
+    let (report, counts) = report::build(
         dataset, results, protocol, &columns, &scored, &errors, &selection,
     );
     Ok(Evaluation {
@@ -163,6 +174,7 @@ pub fn evaluate(
         columns,
         errors,
         images: scored,
+        counts,
     })
 }
 

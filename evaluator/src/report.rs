@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::bootstrap::{BootstrapSummary, ImageCounts};
 use crate::dataset::Dataset;
 use crate::matching::{EstimateErrors, NTop};
 use crate::protocol::{Column, ErrorKind, Protocol, ProtocolName, normalised_error};
@@ -73,6 +74,11 @@ pub struct Report {
     /// `[error signature][score signature]` = recall, with bop_toolkit's signatures
     /// (`error=vsd_ntop=-1_delta=15.000_tau=0.050`, `th=0.050_min-visib=-1.000`).
     pub per_error_recall_per_threshold: BTreeMap<String, BTreeMap<String, f64>>,
+
+    /// The bootstrap 95 % interval of the headline score, when the caller drew one (see
+    /// [`crate::bootstrap`]); absent otherwise, so reports without it read as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bootstrap: Option<BootstrapSummary>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -166,7 +172,7 @@ pub(crate) fn build(
     images: &[ScoredImage],
     errors: &[EstimateErrors],
     selection: &Selection,
-) -> Report {
+) -> (Report, ImageCounts) {
     let object_ids: Vec<u32> = dataset.objects.keys().copied().collect();
     let scene_ids: Vec<u32> = dataset.scenes.keys().copied().collect();
 
@@ -232,6 +238,15 @@ pub(crate) fn build(
         scene_average_recalls: BTreeMap::new(),
         average_recalls,
         per_error_recall_per_threshold,
+        bootstrap: None,
+    };
+    let mut counts = ImageCounts {
+        targets: per_column
+            .first()
+            .and_then(|scored| scored.first())
+            .map(|(_, s)| s.image_targets.clone())
+            .unwrap_or_default(),
+        groups: Vec::new(),
     };
 
     match protocol.name {
@@ -260,6 +275,7 @@ pub(crate) fn build(
                         .find(|(th, _)| *th == protocol.main_theta)
                 });
             if let Some((_, scored)) = main {
+                counts.groups = vec![vec![scored.image_tps.clone()]];
                 report.localization = Some(scored.scores.clone());
                 report.recall_vs_visib = visib_bins(images, &scored.matched, protocol.n_top);
             }
@@ -276,6 +292,18 @@ pub(crate) fn build(
                 report.bop19_average_recall_mspd,
             ) {
                 report.bop19_average_recall = Some(mean(&[v, s, p]));
+                // As `average_recalls` gathers them: by column, then threshold.
+                counts.groups = ["vsd", "mssd", "mspd"]
+                    .iter()
+                    .map(|name| {
+                        columns
+                            .iter()
+                            .zip(&per_column)
+                            .filter(|(c, _)| protocol.errors[c.error].kind.name() == *name)
+                            .flat_map(|(_, scored)| scored.iter().map(|(_, s)| s.image_tps.clone()))
+                            .collect()
+                    })
+                    .collect();
             }
             report.bop19_average_time_per_image =
                 Some(results.average_time_per_image().unwrap_or(-1.0));
@@ -286,7 +314,7 @@ pub(crate) fn build(
                 grouped_average_recall(protocol, columns, &per_column, |s| &s.scene_recalls);
         }
     }
-    report
+    (report, counts)
 }
 
 /// Per error type, the recall at each of its thresholds averaged over its columns (VSD taus).

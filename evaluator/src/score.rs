@@ -48,10 +48,13 @@ fn id_keyed<'de, D: Deserializer<'de>>(d: D) -> Result<BTreeMap<u32, f64>, D::Er
 }
 
 /// Everything matching produced for one threshold: the scores and, per image and gt id,
-/// whether the instance was matched (for the recall-vs-visibility curve).
+/// whether the instance was matched (for the recall-vs-visibility curve), and per image its
+/// targets and true positives (what the recall sums, for the bootstrap of [`crate::bootstrap`]).
 pub struct Scored {
     pub scores: Scores,
     pub matched: Vec<Vec<bool>>,
+    pub image_targets: Vec<u32>,
+    pub image_tps: Vec<u32>,
 }
 
 /// The instances of one image that count as targets, given which were matched: per object,
@@ -104,6 +107,8 @@ pub struct Targets<'a> {
     valid: Vec<Vec<bool>>,
     obj_targets: BTreeMap<u32, usize>,
     scene_targets: BTreeMap<u32, usize>,
+    /// Per image, its targets.
+    image_targets: Vec<u32>,
     targets: usize,
     gt_count: usize,
 }
@@ -121,7 +126,9 @@ impl<'a> Targets<'a> {
         let mut scene_targets: BTreeMap<u32, usize> = scene_ids.iter().map(|&s| (s, 0)).collect();
         let (mut targets, mut gt_count) = (0usize, 0usize);
         let mut valid = Vec::with_capacity(images.len());
+        let mut image_targets = Vec::with_capacity(images.len());
         for im in images {
+            let targets_before = targets;
             gt_count += im.gts.len();
             valid.push(im.gts.iter().map(|g| g.2).collect());
             // Per object of the image, its valid instances, at most n_top of them.
@@ -138,6 +145,7 @@ impl<'a> Targets<'a> {
                 *obj_targets.entry(obj).or_default() += count;
                 *scene_targets.entry(im.scene_id).or_default() += count;
             }
+            image_targets.push((targets - targets_before) as u32);
         }
         Targets {
             images,
@@ -145,6 +153,7 @@ impl<'a> Targets<'a> {
             valid,
             obj_targets,
             scene_targets,
+            image_targets,
             targets,
             gt_count,
         }
@@ -162,7 +171,9 @@ impl<'a> Targets<'a> {
         let mut scene_tps: BTreeMap<u32, usize> = scene_targets.keys().map(|&s| (s, 0)).collect();
         let mut tps = 0usize;
         let mut all_matched = Vec::with_capacity(self.images.len());
+        let mut image_tps = Vec::with_capacity(self.images.len());
         for (im, valid) in self.images.iter().zip(&self.valid) {
+            let tps_before = tps;
             let mut matched = vec![false; im.gts.len()];
             for (_, ests) in &im.estimates {
                 match_image_object(
@@ -180,6 +191,7 @@ impl<'a> Targets<'a> {
                 *scene_tps.entry(im.scene_id).or_default() += 1;
             }
             all_matched.push(matched);
+            image_tps.push((tps - tps_before) as u32);
         }
         let targets = self.targets;
         let gt_count = self.gt_count;
@@ -204,6 +216,8 @@ impl<'a> Targets<'a> {
                 tp_count: tps,
             },
             matched: all_matched,
+            image_targets: self.image_targets.clone(),
+            image_tps,
         }
     }
 }

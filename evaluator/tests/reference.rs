@@ -485,3 +485,46 @@ fn bop19_reports_minus_one_as_the_average_time_when_the_file_gives_none() {
         .expect("report serialises");
     assert!(eccv18.get("bop19_average_time_per_image").is_none());
 }
+
+/// Bootstrap intervals (`evaluator::bootstrap`) on every reference file under both protocols:
+/// the same seed gives the same bounds to the bit, unit weights give the headline itself to the
+/// bit, and the interval contains the headline.
+#[test]
+fn bootstrap_intervals_are_reproducible_and_contain_the_score() {
+    use evaluator::bootstrap::{REPLICATES, dataset_seed};
+    let seed = dataset_seed(&dataset().name);
+    for protocol in [Protocol::bop19(), Protocol::eccv18()] {
+        for name in RESULT_NAMES {
+            let mut ev = run(name, &protocol);
+            let ctx = format!("{name} {}", protocol.name.as_str());
+            let headline = ev.report.headline();
+            let ones = vec![1; ev.counts.images()];
+            assert_eq!(
+                ev.counts.weighted_score(&ones).map(f64::to_bits),
+                Some(headline.to_bits()),
+                "{ctx}: unit weights"
+            );
+            let a = ev.bootstrap(seed, REPLICATES).expect("replicates");
+            let b = ev.bootstrap(seed, REPLICATES).expect("replicates");
+            assert_eq!(a.replicates.len(), REPLICATES);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&a.replicates), bits(&b.replicates), "{ctx}");
+            let [lo, hi] = a.ci95();
+            assert_eq!(
+                ev.report.bootstrap.as_ref().map(|s| s.ci95),
+                Some([lo, hi]),
+                "{ctx}: recorded in the report"
+            );
+            assert!(
+                lo <= headline && headline <= hi,
+                "{ctx}: {lo} {headline} {hi}"
+            );
+            // Another seed draws other images.
+            let c = ev.bootstrap(seed ^ 1, REPLICATES).expect("replicates");
+            assert!(
+                lo == hi || c.replicates != a.replicates,
+                "{ctx}: seed ignored"
+            );
+        }
+    }
+}

@@ -505,6 +505,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
                 &Finished {
                     reports: scaled(reports, f),
                     errors: Vec::new(),
+                    replicates: Default::default(),
                     eval_ms: 1000,
                     dataset_hash: "load-bench".to_string(),
                 },

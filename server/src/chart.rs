@@ -101,28 +101,73 @@ pub fn charts(report: &Report) -> Vec<Chart> {
         out.push(c);
     }
     for curve in &report.recall_vs_threshold {
-        let (title, x_label) = match curve.error.as_str() {
-            "vsd" => (
-                "VSD recall vs threshold (mean over taus)".to_string(),
-                "theta",
-            ),
-            "mspd" => ("MSPD recall vs threshold".to_string(), "threshold (px)"),
-            other => (
-                format!("{} recall vs threshold", other.to_uppercase()),
-                "threshold (x diameter)",
-            ),
-        };
-        let x_max = curve
-            .points
-            .iter()
-            .map(|p| p.0)
-            .fold(0.0, f64::max)
-            .max(1e-9);
+        let (title, x_label) = threshold_titles(&curve.error);
         out.push(chart(
             &title,
             x_label,
-            x_max,
+            x_max(&curve.points),
             vec![("recall".to_string(), curve.points.clone())],
+        ));
+    }
+    out
+}
+
+/// The title and x axis of an error type's recall-vs-threshold chart.
+fn threshold_titles(error: &str) -> (String, &'static str) {
+    match error {
+        "vsd" => (
+            "VSD recall vs threshold (mean over taus)".to_string(),
+            "theta",
+        ),
+        "mspd" => ("MSPD recall vs threshold".to_string(), "threshold (px)"),
+        other => (
+            format!("{} recall vs threshold", other.to_uppercase()),
+            "threshold (x diameter)",
+        ),
+    }
+}
+
+fn x_max(points: &[(f64, f64)]) -> f64 {
+    points.iter().map(|p| p.0).fold(0.0, f64::max).max(1e-9)
+}
+
+/// Several methods' curves on one chart each, one series per method in the order given (a
+/// dataset's board passes its best entries): bop19, recall against the threshold per error
+/// type; eccv18, recall against theta at the main tau.
+pub fn overlays(methods: &[(String, Report)]) -> Vec<Chart> {
+    let Some((_, first)) = methods.first() else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for curve in &first.recall_vs_threshold {
+        let lines: Vec<Line> = methods
+            .iter()
+            .filter_map(|(name, r)| {
+                let c = r
+                    .recall_vs_threshold
+                    .iter()
+                    .find(|c| c.error == curve.error)?;
+                Some((name.clone(), c.points.clone()))
+            })
+            .collect();
+        let max = lines.iter().map(|l| x_max(&l.1)).fold(1e-9, f64::max);
+        let (title, x_label) = threshold_titles(&curve.error);
+        out.push(chart(&title, x_label, max, lines));
+    }
+    let tau = first.parameters.main_tau;
+    let lines: Vec<Line> = methods
+        .iter()
+        .filter_map(|(name, r)| {
+            let c = r.recall_vs_theta.iter().find(|c| c.tau == tau)?;
+            Some((name.clone(), c.points.clone()))
+        })
+        .collect();
+    if !lines.is_empty() {
+        out.push(chart(
+            &format!("Recall vs threshold of correctness at tau = {tau} mm"),
+            "theta",
+            1.0,
+            lines,
         ));
     }
     out
@@ -201,5 +246,45 @@ mod tests {
         );
         assert_eq!(c.series[1].label, "tau = 80 mm");
         assert_eq!(c.y_ticks.last().map(|t| t.label.as_str()), Some("1"));
+    }
+
+    #[test]
+    fn overlays_draw_one_line_per_method_on_a_shared_axis() {
+        let report = |scale: f64| -> Report {
+            let mut r: Report = serde_json::from_value(serde_json::json!({
+                "evaluator_version": "0", "dataset": "d", "protocol": "bop19",
+                "parameters": {"n_top": -1, "visib_gt_min": -1.0, "max_sym_disc_step": 0.01,
+                    "main_tau": 20.0, "main_theta": 0.3, "errors": []},
+                "estimates_count": 0, "estimates_evaluated": 0, "estimates_ignored": 0,
+                "targets_without_estimate": 0, "warnings": [],
+                "average_recalls": {}, "per_error_recall_per_threshold": {}
+            }))
+            .expect("a report");
+            r.recall_vs_threshold = ["vsd", "mssd", "mspd"]
+                .iter()
+                .map(|e| evaluator::report::ThresholdCurve {
+                    error: e.to_string(),
+                    points: vec![(0.1 * scale, 0.2), (0.5 * scale, 0.9)],
+                })
+                .collect();
+            r
+        };
+        let methods: Vec<(String, Report)> = (1..=3)
+            .map(|i| (format!("m{i}"), report(i as f64)))
+            .collect();
+        let charts = overlays(&methods);
+        assert_eq!(charts.len(), 3);
+        for c in &charts {
+            let labels: Vec<&str> = c.series.iter().map(|s| s.label.as_str()).collect();
+            assert_eq!(labels, ["m1", "m2", "m3"]);
+            // The widest curve reaches the right edge; the others stop short of it.
+            assert!(
+                c.series[2]
+                    .points
+                    .ends_with(&format!("{RIGHT:.1},{:.1}", sy(0.9)))
+            );
+            assert!(!c.series[0].points.contains(&format!("{RIGHT:.1},")));
+        }
+        assert!(overlays(&[]).is_empty());
     }
 }

@@ -15,14 +15,14 @@
 //! only then counts as an attempt. On SIGINT or SIGTERM the running evaluation is cancelled and
 //! its job released at once.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::future::Future;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use evaluator::protocol::{Protocol, ProtocolName};
-use evaluator::{Progress, evaluate, results};
+use evaluator::{Progress, bootstrap, evaluate, results};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
@@ -142,6 +142,22 @@ impl Worker {
                     self.run_job(job).instrument(span).await
                 }
                 Ok(None) => {
+                    // Nothing uploaded waits: re-score a submission an older evaluator scored.
+                    match app
+                        .store
+                        .claim_rescore(worker, app.config.lease_ms(), MAX_ATTEMPTS, &skip)
+                        .await
+                    {
+                        Ok(Some(job)) => {
+                            let span = tracing::info_span!("rescore", submission = job.id);
+                            self.run_rescore(job).instrument(span).await;
+                            continue;
+                        }
+                        Ok(None) => {}
+                        Err(e) => {
+                            tracing::error!(%worker, error = %e, "cannot read the re-scoring queue")
+                        }
+                    }
                     tokio::select! {
                         _ = &mut notified => {}
                         _ = tokio::time::sleep(POLL) => {}
@@ -242,6 +258,90 @@ impl Worker {
             Ok(false) => tracing::warn!(submission = id, "job was taken over; result discarded"),
             Err(e) => tracing::error!(submission = id, error = %e, "cannot store the outcome"),
         }
+    }
+
+    /// Re-scores a finished submission with this evaluator: evaluated as a job is (without
+    /// publishing progress, as its scores stand meanwhile), its scores swapped for the new ones
+    /// and the differences recorded.
+    async fn run_rescore(&self, job: SubmissionRow) {
+        let (app, worker, id) = (&self.app, self.id.as_str(), job.id);
+        tracing::info!(%worker, submission = id, from = ?job.evaluator_version, "re-scoring started");
+        let state = JobState::new(job.protocols.len(), job.work);
+        let beat = self.rescore_lease(id, &state);
+        let outcome = tokio::select! {
+            outcome = self.evaluate_job(&job, &state) => outcome,
+            _ = self.shutdown.wait() => Err(JobError::Stopped),
+        };
+        state.cancel.store(true, Ordering::Relaxed);
+        beat.abort();
+        let let_go = |count: bool| {
+            self.persist(
+                "let go of the re-scoring",
+                Some(Instant::now() + RELEASE_GRACE),
+                move || app.store.drop_rescore(id, worker, count),
+            )
+        };
+        let stored = match outcome {
+            Ok(finished) => {
+                match self
+                    .persist("store the new scores", None, || {
+                        app.store.finish_rescore(id, worker, &finished)
+                    })
+                    .await
+                {
+                    Ok(Some(changes)) => {
+                        tracing::info!(submission = id, changes, "re-scored");
+                        Ok(true)
+                    }
+                    Ok(None) => Ok(false),
+                    Err(e) => Err(e),
+                }
+            }
+            Err(JobError::Refused(msg)) => {
+                tracing::warn!(%worker, submission = id, "{msg}; the re-scoring is left to other workers");
+                self.refused.add(job.dataset_id);
+                app.forget_dataset(job.dataset_id).await;
+                let_go(false).await
+            }
+            Err(JobError::Stopped) => let_go(false).await,
+            Err(JobError::User(msg) | JobError::Service(msg)) => {
+                tracing::error!(submission = id, error = %msg, "re-scoring failed");
+                let_go(true).await
+            }
+            Err(JobError::TakenOver) => Ok(false),
+        };
+        if let Err(e) = stored {
+            tracing::error!(submission = id, error = %e, "cannot store the re-scoring");
+        }
+    }
+
+    /// Renews the re-scoring lease until aborted; cancels the evaluation when it is no longer
+    /// this worker's.
+    fn rescore_lease(&self, id: i64, state: &JobState) -> JoinHandle<()> {
+        let (app, worker) = (self.app.clone(), self.id.clone());
+        let (cancel, taken) = (state.cancel.clone(), state.taken_over.clone());
+        tokio::spawn(async move {
+            let every =
+                Duration::from_millis((app.config.lease_ms() / 3).clamp(200, 10_000) as u64);
+            loop {
+                tokio::time::sleep(every).await;
+                match app
+                    .store
+                    .renew_rescore(id, &worker, app.config.lease_ms())
+                    .await
+                {
+                    Ok(true) => {}
+                    Ok(false) => {
+                        taken.store(true, Ordering::Relaxed);
+                        cancel.store(true, Ordering::Relaxed);
+                        return;
+                    }
+                    Err(e) => {
+                        tracing::warn!(submission = id, error = %e, "re-scoring lease not renewed")
+                    }
+                }
+            }
+        })
     }
 
     /// Gives the job back without spending an attempt, trying for a short while only: a
@@ -412,10 +512,11 @@ impl Worker {
                     .map_err(|p| JobError::User(p.to_string()))?;
                 let mut reports = Vec::with_capacity(protocols.len());
                 let mut errors = Vec::with_capacity(protocols.len());
+                let mut replicates = BTreeMap::new();
                 for name in protocols {
                     started.fetch_add(1, Ordering::Relaxed);
                     let protocol = Protocol::named(name);
-                    let evaluation =
+                    let mut evaluation =
                         evaluate(&dataset, &results, &protocol, counter.as_ref(), &cancel)
                             .map_err(|e| match e {
                                 evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
@@ -425,11 +526,16 @@ impl Worker {
                                 other => JobError::Service(other.to_string()),
                             })?;
                     errors.push(error_rows(name, &evaluation)?);
+                    let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
+                    if let Some(b) = evaluation.bootstrap(seed, bootstrap::REPLICATES) {
+                        replicates.insert(name, b.replicates);
+                    }
                     reports.push(evaluation.report);
                 }
                 Ok(Finished {
                     reports,
                     errors,
+                    replicates,
                     eval_ms: clock.elapsed().as_millis() as i64,
                     dataset_hash,
                 })

@@ -27,6 +27,7 @@ pub mod ops;
 pub mod overlay;
 pub mod preflight;
 pub mod publishing;
+pub mod rescoring;
 pub mod routes;
 pub mod serve;
 pub mod shutdown;

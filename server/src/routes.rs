@@ -10,6 +10,7 @@ pub mod exports;
 pub mod limits;
 pub mod ops;
 pub mod pages;
+pub mod rescoring;
 pub mod snapshots;
 pub mod submissions;
 pub mod targets;
@@ -61,12 +62,14 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(snapshots::page_router())
         .merge(targets::page_router())
         .merge(exports::router())
+        .merge(rescoring::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
         .merge(api::router(max_upload))
         .merge(snapshots::api_router())
         .merge(targets::api_router())
+        .merge(rescoring::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

@@ -27,6 +27,7 @@ pub mod files;
 pub mod health;
 pub mod methods;
 pub mod queue;
+pub mod rescoring;
 pub mod scores;
 pub mod snapshots;
 pub mod submissions;

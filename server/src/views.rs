@@ -36,6 +36,12 @@ pub struct Cell {
     pub pinned: bool,
     /// How the score can be reproduced.
     pub record: ScoreRecord,
+    /// The bootstrap 95 % interval of `score` (resampling the dataset's images); absent for a
+    /// score stored before intervals were, until it is re-scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ci95: Option<[f64; 2]>,
+    #[serde(skip)]
+    pub score_id: i64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -57,6 +63,10 @@ pub struct BoardRow {
     pub covered: usize,
     /// Mean of the scores over the datasets shown; only when the method has a score on each.
     pub average: Option<f64>,
+    /// The bootstrap 95 % interval of `average`: the percentiles of the replicate-wise means
+    /// over the datasets (replicate b of each); absent when a score has no replicates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ci95: Option<[f64; 2]>,
     /// Mean of the scores over the datasets covered (what orders unranked rows).
     pub mean: Option<f64>,
     /// Mean of the times over the datasets covered (per image for bop19, per target for
@@ -85,7 +95,14 @@ pub struct Leaderboard {
     /// What the rows are ordered by: `average`, `time`, `method` or a dataset name.
     pub sorted_by: String,
     pub rows: Vec<BoardRow>,
+    /// With one dataset selected: the recall curves of its best entries (at most
+    /// [`OVERLAID`]), overlaid one chart per curve.
+    #[serde(skip)]
+    pub overlays: Vec<Chart>,
 }
+
+/// How many of a dataset's best entries its board's charts overlay.
+pub const OVERLAID: usize = 5;
 
 /// The query of a leaderboard page or its JSON twin, as given (the page's links keep it).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -263,6 +280,7 @@ pub async fn leaderboard(
             scores: BTreeMap::new(),
             covered: 0,
             average: None,
+            ci95: None,
             mean: None,
             time: None,
             objects: BTreeMap::new(),
@@ -291,6 +309,7 @@ pub async fn leaderboard(
             row.average = row.mean;
         }
     }
+    average_intervals(app, &mut rows, &columns).await?;
     // Ranked rows by their average, then the others by coverage and mean; ties by age.
     rows.sort_by(|a, b| {
         b.average
@@ -316,6 +335,10 @@ pub async fn leaderboard(
         row.rank = Some(rank);
         previous = Some((key, rank));
     }
+    let overlays = match &selected {
+        Some(d) => overlays(app, protocol, &d.name, &rows).await?,
+        None => Vec::new(),
+    };
     // Another order keeps each row's rank: `#` is always the score's.
     let last = |v: Option<f64>| v.map_or((1, 0.0), |v| (0, v));
     match &query.sort {
@@ -352,7 +375,76 @@ pub async fn leaderboard(
             Sort::Dataset(name) => name.clone(),
         },
         rows,
+        overlays,
     })
+}
+
+/// The charts of a dataset's board: the curves of its [`OVERLAID`] best ranked entries, from
+/// their stored reports (`rows` in rank order).
+async fn overlays(
+    app: &App,
+    protocol: ProtocolName,
+    dataset: &str,
+    rows: &[BoardRow],
+) -> AppResult<Vec<Chart>> {
+    let mut methods = Vec::new();
+    for row in rows.iter().filter(|r| r.rank.is_some()).take(OVERLAID) {
+        let Some(cell) = row.scores.get(dataset) else {
+            continue;
+        };
+        let reports = app.store.reports_of_submission(cell.submission_id).await?;
+        if let Some(report) = reports.into_iter().find(|r| r.protocol == protocol) {
+            methods.push((row.method.clone(), report));
+        }
+    }
+    Ok(crate::chart::overlays(&methods))
+}
+
+/// The interval of each row's average: a single score's own, or, over several datasets, the
+/// percentiles of the means of their replicates taken replicate by replicate (in the order and
+/// with the sum the average uses).
+async fn average_intervals(
+    app: &App,
+    rows: &mut [BoardRow],
+    columns: &[DatasetRow],
+) -> AppResult<()> {
+    let cells = |row: &BoardRow| -> Vec<Cell> {
+        columns
+            .iter()
+            .filter_map(|d| row.scores.get(&d.name).cloned())
+            .collect()
+    };
+    if columns.len() == 1 {
+        for row in rows.iter_mut().filter(|r| r.average.is_some()) {
+            row.ci95 = cells(&*row).first().and_then(|c| c.ci95);
+        }
+        return Ok(());
+    }
+    let ids: Vec<i64> = rows
+        .iter()
+        .filter(|r| r.average.is_some())
+        .flat_map(|r| cells(r).into_iter().map(|c| c.score_id))
+        .collect();
+    let replicates = app.store.replicates(&ids).await?;
+    for row in rows.iter_mut().filter(|r| r.average.is_some()) {
+        let sets: Option<Vec<&Vec<f64>>> = cells(&*row)
+            .iter()
+            .map(|c| replicates.get(&c.score_id))
+            .collect();
+        let Some(sets) = sets.filter(|s| !s.is_empty()) else {
+            continue;
+        };
+        let b = sets[0].len();
+        if sets.iter().any(|s| s.len() != b) {
+            continue;
+        }
+        let n = sets.len() as f64;
+        let means: Vec<f64> = (0..b)
+            .map(|i| sets.iter().map(|s| s[i]).sum::<f64>() / n)
+            .collect();
+        row.ci95 = Some(evaluator::bootstrap::interval95(&means));
+    }
+    Ok(())
 }
 
 fn cell(e: &BoardEntry) -> Cell {
@@ -366,6 +458,8 @@ fn cell(e: &BoardEntry) -> Cell {
         time: e.score.time_avg,
         pinned: e.pinned,
         record: e.score.record.clone(),
+        ci95: e.score.ci95,
+        score_id: e.score.id,
     }
 }
 

@@ -162,6 +162,7 @@ fn finished(protocols: &[ProtocolName]) -> (Finished, Vec<serde_json::Value>) {
     let done = Finished {
         reports,
         errors,
+        replicates: Default::default(),
         eval_ms: 1000,
         dataset_hash: "store-test".to_string(),
     };

@@ -101,6 +101,7 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         if demo {
             crate::demo_setup::ensure_demo_submissions(&app).await?;
         }
+        crate::rescoring::flag_stale(&app.store).await?;
         let workers = crate::jobs::spawn_workers(&app, &shutdown);
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
@@ -135,6 +136,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
             );
             tokio::spawn(crate::routes::ops::serve_alone(app.clone(), listener));
         }
+        crate::rescoring::flag_stale(&app.store).await?;
         join_all(crate::jobs::spawn_workers(&app, &shutdown)).await;
         Ok(())
     });

@@ -107,6 +107,16 @@ pub(crate) mod filters {
         Ok(crate::wording::count(n, one, many))
     }
 
+    /// A bootstrap 95 % interval, for the hover of a score.
+    #[askama::filter_fn]
+    pub fn ci95(v: &[f64; 2], _: &dyn askama::Values) -> askama::Result<String> {
+        Ok(format!(
+            "95 % bootstrap interval: {:.1} to {:.1}",
+            v[0] * 100.0,
+            v[1] * 100.0
+        ))
+    }
+
     #[askama::filter_fn]
     pub fn date(ms: &i64, _: &dyn askama::Values) -> askama::Result<String> {
         Ok(crate::wording::utc_minute(*ms))

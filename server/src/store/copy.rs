@@ -33,6 +33,7 @@ const TABLES: &[&str] = &[
     "sign_in_addresses",
     "snapshots",
     "snapshot_boards",
+    "score_changes",
 ];
 
 /// Tables the migrations create and seed themselves, holding no data of their own: not copied.

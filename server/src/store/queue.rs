@@ -3,9 +3,11 @@
 //! marks the row done, only while the job is still its own. A job whose lease expired (its
 //! worker died) is claimed again by any worker; after `max_attempts` it is failed instead.
 
+use std::collections::BTreeMap;
+
 use evaluator::Report;
 use evaluator::protocol::ProtocolName;
-use sqlx::Row;
+use sqlx::{Any, Row, Transaction};
 
 use super::board_version;
 use super::errors::{self, NewErrors};
@@ -19,6 +21,9 @@ pub struct Finished {
     pub reports: Vec<Report>,
     /// The per-estimate errors of each protocol.
     pub errors: Vec<NewErrors>,
+    /// Per protocol, the bootstrap replicates of its headline score (whose interval the
+    /// report's `bootstrap` records).
+    pub replicates: BTreeMap<ProtocolName, Vec<f64>>,
     /// How long the evaluation took: with the estimates it evaluated, the speed of this
     /// service that waiting times are estimated from.
     pub eval_ms: i64,
@@ -118,7 +123,8 @@ impl Store {
         let updated = sqlx::query(
             "UPDATE submissions SET status = 'done', progress = 1, finished_at = $1, \
              lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2, \
-             work = $3, work_done = $3, eval_ms = $4 \
+             work = $3, work_done = $3, eval_ms = $4, rescore = 0, rescore_worker = NULL, \
+             rescore_lease_until = NULL, rescore_attempts = 0 \
              WHERE id = $5 AND worker = $6 AND status = 'running'",
         )
         .bind(now)
@@ -148,70 +154,7 @@ impl Store {
             .execute(&mut *tx)
             .await?;
         errors::replace(&mut tx, id, &finished.errors, now).await?;
-        for report in reports {
-            let loc = report.localization.as_ref();
-            let (time_avg, recall) = match report.protocol {
-                ProtocolName::Eccv18 => (report.average_time_per_target, loc.map(|l| l.recall)),
-                // A negative time (bop_toolkit's -1) means the file gave none.
-                ProtocolName::Bop19 => (
-                    report.bop19_average_time_per_image.filter(|t| *t >= 0.0),
-                    None,
-                ),
-            };
-            let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
-                column: "report_json",
-                value: e.to_string(),
-            })?;
-            let parameters =
-                serde_json::to_string(&report.parameters).map_err(|e| StoreError::Corrupt {
-                    column: "parameters_json",
-                    value: e.to_string(),
-                })?;
-            let row = sqlx::query(
-                "INSERT INTO scores (submission_id, protocol, score, recall, ar_vsd, ar_mssd, \
-                 ar_mspd, time_avg, targets_count, tp_count, estimates_evaluated, estimates_ignored, \
-                 report_json, created_at, evaluator_version, parameters_json, dataset_hash) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17) \
-                 RETURNING id",
-            )
-            // The optional columns are NULL for one protocol and numbers for the other; a
-            // cached statement would keep the parameter types of its first use.
-            .persistent(false)
-            .bind(id)
-            .bind(report.protocol.as_str())
-            .bind(report.headline())
-            .bind(recall)
-            .bind(report.bop19_average_recall_vsd)
-            .bind(report.bop19_average_recall_mssd)
-            .bind(report.bop19_average_recall_mspd)
-            .bind(time_avg)
-            .bind(loc.map(|l| l.targets_count as i64))
-            .bind(loc.map(|l| l.tp_count as i64))
-            .bind(report.estimates_evaluated as i64)
-            .bind(report.estimates_ignored as i64)
-            .bind(json)
-            .bind(now)
-            .bind(&report.evaluator_version)
-            .bind(parameters)
-            .bind(&finished.dataset_hash)
-            .fetch_one(&mut *tx)
-            .await?;
-            let score_id: i64 = row.try_get("id")?;
-            let objects = match (report.protocol, loc) {
-                (ProtocolName::Eccv18, Some(l)) => &l.obj_recalls,
-                _ => &report.obj_average_recalls,
-            };
-            for (&obj, &value) in objects {
-                sqlx::query(
-                    "INSERT INTO object_scores (score_id, obj_id, value) VALUES ($1, $2, $3)",
-                )
-                .bind(score_id)
-                .bind(i64::from(obj))
-                .bind(value)
-                .execute(&mut *tx)
-                .await?;
-            }
-        }
+        insert_scores(&mut tx, id, finished, now).await?;
         board_version::bump(&mut tx).await?;
         tx.commit().await?;
         self.board_changed();
@@ -271,4 +214,104 @@ impl Store {
         .await?;
         Ok(done.rows_affected() == 1)
     }
+}
+
+/// Inserts the scores of `finished` for submission `id` (whose old scores are gone): one row
+/// per protocol with its report, interval and replicates, and its per-object scores.
+pub(crate) async fn insert_scores(
+    tx: &mut Transaction<'static, Any>,
+    id: i64,
+    finished: &Finished,
+    now: i64,
+) -> StoreResult<()> {
+    for report in &finished.reports {
+        let loc = report.localization.as_ref();
+        let (time_avg, recall) = match report.protocol {
+            ProtocolName::Eccv18 => (report.average_time_per_target, loc.map(|l| l.recall)),
+            // A negative time (bop_toolkit's -1) means the file gave none.
+            ProtocolName::Bop19 => (
+                report.bop19_average_time_per_image.filter(|t| *t >= 0.0),
+                None,
+            ),
+        };
+        let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
+            column: "report_json",
+            value: e.to_string(),
+        })?;
+        // Empty when there was nothing to resample: NULL is left to scores stored before
+        // replicates were, which re-scoring fills in.
+        let replicates = finished
+            .replicates
+            .get(&report.protocol)
+            .map_or(&[][..], Vec::as_slice);
+        let ci95 = report.bootstrap.as_ref().map(|b| b.ci95);
+        let parameters =
+            serde_json::to_string(&report.parameters).map_err(|e| StoreError::Corrupt {
+                column: "parameters_json",
+                value: e.to_string(),
+            })?;
+        let row = sqlx::query(
+            "INSERT INTO scores (submission_id, protocol, score, recall, ar_vsd, ar_mssd, \
+             ar_mspd, time_avg, targets_count, tp_count, estimates_evaluated, estimates_ignored, \
+             report_json, created_at, ci_low, ci_high, replicates, evaluator_version, \
+             parameters_json, dataset_hash) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17, \
+             $18, $19, $20) \
+             RETURNING id",
+        )
+        // The optional columns are NULL for one protocol and numbers for the other; a
+        // cached statement would keep the parameter types of its first use.
+        .persistent(false)
+        .bind(id)
+        .bind(report.protocol.as_str())
+        .bind(report.headline())
+        .bind(recall)
+        .bind(report.bop19_average_recall_vsd)
+        .bind(report.bop19_average_recall_mssd)
+        .bind(report.bop19_average_recall_mspd)
+        .bind(time_avg)
+        .bind(loc.map(|l| l.targets_count as i64))
+        .bind(loc.map(|l| l.tp_count as i64))
+        .bind(report.estimates_evaluated as i64)
+        .bind(report.estimates_ignored as i64)
+        .bind(json)
+        .bind(now)
+        .bind(ci95.map(|c| c[0]))
+        .bind(ci95.map(|c| c[1]))
+        .bind(replicates_bytes(replicates))
+        .bind(&report.evaluator_version)
+        .bind(parameters)
+        .bind(&finished.dataset_hash)
+        .fetch_one(&mut **tx)
+        .await?;
+        let score_id: i64 = row.try_get("id")?;
+        let objects = match (report.protocol, loc) {
+            (ProtocolName::Eccv18, Some(l)) => &l.obj_recalls,
+            _ => &report.obj_average_recalls,
+        };
+        for (&obj, &value) in objects {
+            sqlx::query("INSERT INTO object_scores (score_id, obj_id, value) VALUES ($1, $2, $3)")
+                .bind(score_id)
+                .bind(i64::from(obj))
+                .bind(value)
+                .execute(&mut **tx)
+                .await?;
+        }
+    }
+    Ok(())
+}
+
+/// Replicates as stored: little-endian f64s in replicate order.
+fn replicates_bytes(values: &[f64]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// Replicates as read back; `None` for a length that is no whole number of f64s.
+pub(crate) fn replicates_from(bytes: &[u8]) -> Option<Vec<f64>> {
+    (bytes.len() % 8 == 0).then(|| {
+        bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()))
+            .collect()
+    })
 }

@@ -12,6 +12,7 @@ use sqlx::Row;
 use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
+use super::queue::replicates_from;
 use super::{Store, StoreError, StoreResult, parse_column};
 use crate::domain::{Modality, TrainingData};
 
@@ -30,6 +31,8 @@ pub struct ScoreRow {
     pub estimates_evaluated: i64,
     pub estimates_ignored: i64,
     pub record: ScoreRecord,
+    /// The bootstrap 95 % interval of `score`, for scores stored with replicates.
+    pub ci95: Option<[f64; 2]>,
 }
 
 /// What it takes to reproduce a score: the evaluator, the protocol with its parameters, and
@@ -50,7 +53,7 @@ pub struct ScoreRecord {
 const SCORE_COLUMNS: &str = "sc.id AS score_id, sc.submission_id, sc.protocol, sc.score, \
      sc.recall, sc.ar_vsd, sc.ar_mssd, sc.ar_mspd, sc.time_avg, sc.estimates_evaluated, \
      sc.estimates_ignored, sc.evaluator_version, sc.parameters_json, sc.dataset_hash, \
-     s.file_sha256";
+     s.file_sha256, sc.ci_low, sc.ci_high";
 
 /// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -133,6 +136,10 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
             parameters,
             dataset_hash: row.try_get("dataset_hash")?,
             file_sha256: row.try_get("file_sha256")?,
+        },
+        ci95: match (row.try_get("ci_low")?, row.try_get("ci_high")?) {
+            (Some(low), Some(high)) => Some([low, high]),
+            _ => None,
         },
     })
 }
@@ -239,6 +246,35 @@ impl Store {
             }
         }
         Ok(entries)
+    }
+
+    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id.
+    pub async fn replicates(&self, ids: &[i64]) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
+        let mut out = BTreeMap::new();
+        // In slices, so that no statement has more parameters than a database takes.
+        for chunk in ids.chunks(500) {
+            let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
+            // Only the placeholders' count comes from the caller.
+            let sql = format!(
+                "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN ({})",
+                marks.join(", ")
+            );
+            let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
+            for id in chunk {
+                query = query.bind(*id);
+            }
+            for r in query.fetch_all(&self.pool).await? {
+                let bytes: Vec<u8> = r.try_get("replicates")?;
+                let values = replicates_from(&bytes).ok_or(StoreError::Corrupt {
+                    column: "replicates",
+                    value: format!("{} bytes", bytes.len()),
+                })?;
+                if !values.is_empty() {
+                    out.insert(r.try_get("id")?, values);
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The entries, per protocol, of a method on a dataset.
