@@ -458,7 +458,10 @@ impl Worker {
 /// What a job's evaluation gives: a 6D file's reports and errors, or a 2D file's report.
 enum Outcome {
     Pose(Finished),
-    Coco { report: CocoReport, eval_ms: i64 },
+    Coco {
+        report: Box<CocoReport>,
+        eval_ms: i64,
+    },
 }
 
 /// Scores a BOP'22 2D file on the evaluation threads: the dataset's ground truth is read for
@@ -483,7 +486,7 @@ async fn evaluate_coco(
                 other => JobError::Service(other.to_string()),
             })?;
             Ok(Outcome::Coco {
-                report,
+                report: Box::new(report),
                 eval_ms: clock.elapsed().as_millis() as i64,
             })
         })
