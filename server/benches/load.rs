@@ -479,6 +479,7 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             meta: &meta,
             dataset_id: ds.id,
             protocols: &protocols,
+            task: None,
             visibility: server::domain::Visibility::Public,
             held: false,
             file_name: "m_synthA-test.csv",

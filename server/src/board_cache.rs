@@ -33,9 +33,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
-use evaluator::protocol::ProtocolName;
 use tokio::sync::OnceCell;
 
+use crate::domain::BoardProtocol;
 use crate::store::{Store, StoreError};
 
 /// Which rendering of a board.
@@ -50,7 +50,7 @@ pub enum Format {
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct BoardKey {
     pub format: Format,
-    pub protocol: ProtocolName,
+    pub protocol: BoardProtocol,
     /// The query's (dataset, sort, training, modality).
     pub query: [Option<String>; 4],
 }

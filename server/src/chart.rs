@@ -1,8 +1,10 @@
-//! Recall curves as server-rendered SVG (the paper's Fig. 5): the geometry is computed here and
+//! Recall curves (the paper's Fig. 5) and the 2D tasks' precision-recall curves as
+//! server-rendered SVG: the geometry is computed here and
 //! the template only places it, so pages need no JavaScript and no plotting crate (plotters'
 //! defaults need fontconfig).
 
 use evaluator::Report;
+use evaluator::coco::CocoReport;
 use evaluator::report::VisibBin;
 
 /// Plot area inside the SVG viewBox (0 0 360 240).
@@ -171,6 +173,52 @@ pub fn overlays(methods: &[(String, Report)]) -> Vec<Chart> {
         ));
     }
     out
+}
+
+/// COCOeval's precision at the 101 recall points as (recall, precision) points, without the
+/// points where it is undefined (-1: no ground truth, or the recall is never reached).
+fn pr_points(precision: &[f64]) -> Vec<(f64, f64)> {
+    precision
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| **p >= 0.0)
+        .map(|(i, &p)| (i as f64 / 100.0, p))
+        .collect()
+}
+
+/// The precision-recall curves of a 2D report (all areas, 100 detections, mean over the
+/// categories): at IoU 0.5, at 0.75, and averaged over the ten thresholds, as AP averages it.
+pub fn precision_recall(report: &CocoReport) -> Chart {
+    let pr = &report.precision_recall;
+    pr_chart(
+        "Precision vs recall",
+        vec![
+            ("IoU 0.50:0.95 (mean)".to_string(), pr_points(&pr.iou_mean)),
+            ("IoU 0.50".to_string(), pr_points(&pr.iou_50)),
+            ("IoU 0.75".to_string(), pr_points(&pr.iou_75)),
+        ],
+    )
+}
+
+/// The precision-recall curve averaged over the IoU thresholds (the one AP is the mean of) of
+/// each labelled report, one series each, for a dataset's board.
+pub fn precision_recall_of_methods(reports: &[(String, &CocoReport)]) -> Chart {
+    pr_chart(
+        "Precision vs recall, mean over IoU 0.50:0.95",
+        reports
+            .iter()
+            .map(|(label, r)| (label.clone(), pr_points(&r.precision_recall.iou_mean)))
+            .collect(),
+    )
+}
+
+fn pr_chart(title: &str, lines: Vec<Line>) -> Chart {
+    let mut c = chart(title, "recall", 1.0, lines);
+    // 101 points a curve: a marker on each would hide the line.
+    for s in &mut c.series {
+        s.dots.clear();
+    }
+    c
 }
 
 fn chart(title: &str, x_label: &str, x_max: f64, lines: Vec<Line>) -> Chart {

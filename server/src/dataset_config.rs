@@ -66,3 +66,12 @@ pub fn is_dataset_folder(folder: &Path) -> bool {
     folder_options(folder).is_ok_and(|o| folder.join(o.targets_file).is_file())
         || folder.join(CONFIG_FILE).is_file()
 }
+
+/// The 2D ground truth (`scene_gt_coco.json` per scene) of the dataset in `folder`, for the
+/// split its configuration chooses, with the masks decoded when `with_masks` (segmentation).
+/// The service ranks detection against the amodal boxes, as the BOP site does.
+pub fn coco_gt(folder: &Path, with_masks: bool) -> Result<evaluator::coco::CocoGt, String> {
+    let opts = folder_options(folder)?;
+    evaluator::coco::CocoGt::load(folder, &opts, evaluator::coco::BboxType::Amodal, with_masks)
+        .map_err(|e| e.to_string())
+}

@@ -6,10 +6,14 @@
 //! cluttered table scenes with occlusion, truncation and sensor noise, and the annotations
 //! computed with the evaluator's own renderer and visibility rules, so that they agree with
 //! what the evaluation sees. Demo submissions of known quality then fill the leaderboard.
+//! Each scene also gets the COCO ground truth of the BOP'22 2D tasks, made from the visible
+//! masks as bop_toolkit's `calc_gt_coco.py` makes it, and a demo detector and segmenter fill
+//! those boards.
 //!
 //! Everything is drawn from ChaCha8 streams seeded by the options (the same numbers on every
 //! platform), so the same options give byte-identical files on every start.
 
+mod coco;
 mod files;
 mod layouts;
 mod scenes;
@@ -20,6 +24,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 
+pub use coco::write_demo_coco_results;
 pub use layouts::{CORE_LAYOUTS, CoreLayout, write_core_miniature};
 pub use submissions::{DemoResult, write_demo_results};
 

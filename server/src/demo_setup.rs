@@ -8,7 +8,9 @@ use evaluator::protocol::ProtocolName;
 
 use crate::accounts::{new_secret, register};
 use crate::app::App;
-use crate::demo::{DEMO_DATASET, SynthOptions, write_dataset, write_demo_results};
+use crate::demo::{
+    DEMO_DATASET, SynthOptions, write_dataset, write_demo_coco_results, write_demo_results,
+};
 use crate::domain::{
     Description, Hardware, MethodName, Modality, Password, TrainingData, UserName, Visibility,
 };
@@ -61,8 +63,12 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
     let out = tempfile::tempdir_in(&app.config.data_dir)?;
     let dataset_dir = std::path::PathBuf::from(&row.path);
     let out_dir = out.path().to_path_buf();
-    let demos = tokio::task::spawn_blocking(move || write_demo_results(&dataset_dir, &out_dir, 11))
-        .await??;
+    let demos = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
+        let mut demos = write_demo_results(&dataset_dir, &out_dir, 11)?;
+        demos.extend(write_demo_coco_results(&dataset_dir, &out_dir, 11)?);
+        Ok(demos)
+    })
+    .await??;
     for demo in demos {
         let bytes = std::fs::read(&demo.path)?;
         let name = demo
@@ -74,6 +80,8 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
             method: MethodName::parse(&demo.method)?,
             dataset: Some(row.name.clone()),
             protocols: vec![ProtocolName::Bop19, ProtocolName::Eccv18],
+            // The demo's `.json` files are BOP'22 2D results: their task is read from them.
+            task: None,
             meta: MethodMeta {
                 description: Description::parse(&demo.description)?,
                 training_data: Some(TrainingData::Synthetic),

@@ -287,6 +287,65 @@ word_enum!(
     ModelScope, "model_scope" { All = "all", PerObject = "per-object" }
 );
 
+word_enum!(
+    /// A BOP'22 2D task, as uploads name it and its board is keyed: detection (boxes, against
+    /// the amodal ground-truth boxes, as the BOP site ranks it) or segmentation (masks).
+    CocoProtocol, "protocol" { Detection = "bop22-det", Segmentation = "bop22-seg" }
+);
+
+impl CocoProtocol {
+    /// What the evaluator scores for it.
+    pub fn task(self) -> evaluator::coco::CocoTask {
+        match self {
+            CocoProtocol::Detection => {
+                evaluator::coco::CocoTask::Detection(evaluator::coco::BboxType::Amodal)
+            }
+            CocoProtocol::Segmentation => evaluator::coco::CocoTask::Segmentation,
+        }
+    }
+}
+
+/// What a leaderboard ranks: a 6D protocol's scores or a 2D task's AP. Written as its name
+/// (`bop19`, `eccv18`, `bop22-det`, `bop22-seg`) in URLs and JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(untagged)]
+pub enum BoardProtocol {
+    Pose(evaluator::protocol::ProtocolName),
+    Coco(CocoProtocol),
+}
+
+impl BoardProtocol {
+    /// Every board, in the order the pages list them.
+    pub const ALL: [BoardProtocol; 4] = [
+        BoardProtocol::Pose(evaluator::protocol::ProtocolName::Bop19),
+        BoardProtocol::Pose(evaluator::protocol::ProtocolName::Eccv18),
+        BoardProtocol::Coco(CocoProtocol::Detection),
+        BoardProtocol::Coco(CocoProtocol::Segmentation),
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BoardProtocol::Pose(p) => p.as_str(),
+            BoardProtocol::Coco(t) => t.as_str(),
+        }
+    }
+
+    /// The board named `name`, if there is one.
+    pub fn named(name: &str) -> Option<BoardProtocol> {
+        BoardProtocol::ALL.into_iter().find(|b| b.as_str() == name)
+    }
+
+    pub fn is_coco(self) -> bool {
+        matches!(self, BoardProtocol::Coco(_))
+    }
+}
+
+impl From<evaluator::protocol::ProtocolName> for BoardProtocol {
+    fn from(p: evaluator::protocol::ProtocolName) -> Self {
+        BoardProtocol::Pose(p)
+    }
+}
+
 /// A method's details as its owner states them on the method page or through the API. Each
 /// field is the text sent; a field left out (`None`) keeps its stored value, an empty one
 /// clears it.

@@ -14,6 +14,9 @@
 //! evaluation that fails for the service's reasons is tried again in place with backoff, and
 //! only then counts as an attempt. On SIGINT or SIGTERM the running evaluation is cancelled and
 //! its job released at once.
+//!
+//! A BOP'22 2D job (its `task` set) is scored the same way, by `evaluator::coco` on the
+//! dataset's `scene_gt_coco.json`, and its report stored in `coco_scores`.
 
 use std::collections::{BTreeMap, HashMap};
 use std::future::Future;
@@ -21,12 +24,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use evaluator::coco::{self, CocoReport};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Progress, bootstrap, evaluate, results};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
 use crate::app::{AppState, Role};
+use crate::dataset_config;
+use crate::domain::CocoProtocol;
 use crate::shutdown::Shutdown;
 use crate::store::StoreResult;
 use crate::store::errors::NewErrors;
@@ -193,21 +199,28 @@ impl Worker {
         // What the metrics count once stored: estimates evaluated for a done job, nothing for
         // a failed one; a job handed back to the queue has not ended.
         let ending = match &outcome {
-            Ok(finished) => Some(Some(
+            Ok(Outcome::Pose(finished)) => Some(Some(
                 finished
                     .reports
                     .iter()
                     .map(|r| r.estimates_evaluated as u64)
                     .sum(),
             )),
+            Ok(Outcome::Coco { report, .. }) => Some(Some(report.entries_evaluated as u64)),
             Err(JobError::User(_)) => Some(None),
             Err(JobError::Service(_)) if job.attempts >= MAX_ATTEMPTS => Some(None),
             Err(_) => None,
         };
         let stored = match outcome {
-            Ok(finished) => {
+            Ok(Outcome::Pose(finished)) => {
                 self.persist("store the scores", None, || {
                     app.store.finish(id, worker, &finished)
+                })
+                .await
+            }
+            Ok(Outcome::Coco { report, eval_ms }) => {
+                self.persist("store the scores", None, || {
+                    app.store.finish_coco(id, worker, &report, eval_ms)
                 })
                 .await
             }
@@ -282,7 +295,9 @@ impl Worker {
             )
         };
         let stored = match outcome {
-            Ok(finished) => {
+            // Never flagged (see `Store::flag_rescoring`); let go, counted, should one be.
+            Ok(Outcome::Coco { .. }) => let_go(true).await,
+            Ok(Outcome::Pose(finished)) => {
                 match self
                     .persist("store the new scores", None, || {
                         app.store.finish_rescore(id, worker, &finished)
@@ -434,7 +449,7 @@ impl Worker {
         &self,
         job: &SubmissionRow,
         state: &JobState,
-    ) -> Result<Finished, JobError> {
+    ) -> Result<Outcome, JobError> {
         let mut pause = FIRST_BACKOFF;
         let mut tries = 1;
         loop {
@@ -455,7 +470,7 @@ impl Worker {
         &self,
         job: &SubmissionRow,
         state: &JobState,
-    ) -> Result<Finished, JobError> {
+    ) -> Result<Outcome, JobError> {
         let app = &self.app;
         let row = app
             .store
@@ -497,6 +512,9 @@ impl Worker {
                 .map_err(|e| JobError::Service(e.to_string()))?;
 
         let (dataset, dataset_hash) = (loaded.dataset, loaded.content_hash);
+        if let Some(task) = job.task {
+            return evaluate_coco(app, task, dataset.root.clone(), bytes).await;
+        }
         let protocols: Vec<ProtocolName> = job.protocols.clone();
         let (counter, started, cancel, taken) = (
             state.counter.clone(),
@@ -532,18 +550,58 @@ impl Worker {
                     }
                     reports.push(evaluation.report);
                 }
-                Ok(Finished {
+                Ok(Outcome::Pose(Finished {
                     reports,
                     errors,
                     replicates,
                     eval_ms: clock.elapsed().as_millis() as i64,
                     dataset_hash,
-                })
+                }))
             })
         })
         .await
         .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
     }
+}
+
+/// What a job's evaluation gives: a 6D file's reports and errors, or a 2D file's report.
+enum Outcome {
+    Pose(Finished),
+    Coco {
+        report: Box<CocoReport>,
+        eval_ms: i64,
+    },
+}
+
+/// Scores a BOP'22 2D file on the evaluation threads: the dataset's ground truth is read for
+/// the job (with the masks for segmentation) and COCOeval runs on the pool. COCOeval has no
+/// progress to report; a cancelled job's result is dropped by the caller.
+async fn evaluate_coco(
+    app: &AppState,
+    task: CocoProtocol,
+    root: std::path::PathBuf,
+    bytes: Vec<u8>,
+) -> Result<Outcome, JobError> {
+    let pool_app = app.clone();
+    tokio::task::spawn_blocking(move || {
+        pool_app.pool.install(|| {
+            let clock = Instant::now();
+            let results =
+                coco::parse_coco_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
+            let with_masks = task == CocoProtocol::Segmentation;
+            let gt = dataset_config::coco_gt(&root, with_masks).map_err(JobError::Service)?;
+            let report = coco::evaluate(&gt, &results, task.task()).map_err(|e| match e {
+                evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
+                other => JobError::Service(other.to_string()),
+            })?;
+            Ok(Outcome::Coco {
+                report: Box::new(report),
+                eval_ms: clock.elapsed().as_millis() as i64,
+            })
+        })
+    })
+    .await
+    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
 }
 
 /// The per-estimate errors of one protocol, compressed for the store.

@@ -75,14 +75,14 @@ fn paths() -> Value {
             "/api/v1/submissions": {
                 "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
                 "post": {
-                    "summary": "Upload result files (BOP'19 CSV, one per dataset) for evaluation",
+                    "summary": "Upload result files (BOP'19 CSV, or BOP'22 2D JSON; one per dataset) for evaluation",
                     "security": [{ "bearer": [] }],
                     "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
                         "type": "object", "required": ["method", "file"],
                         "properties": {
                             "method": { "type": "string", "maxLength": 100 },
                             "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
-                            "protocol": { "type": "string", "enum": ["bop19", "eccv18"], "description": "default: both" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"], "description": "default: bop19 and eccv18 for a CSV file; for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
                             "description": { "type": "string" },
                             "paper_url": { "type": "string" },
                             "code_url": { "type": "string" },
@@ -119,7 +119,7 @@ fn paths() -> Value {
                     "409": { "description": "red flags hold publication back: {error} names them; send confirm=true to publish anyway" } } } },
             "/api/v1/submissions/{id}/file": { "get": { "summary": "The uploaded result file, as sent (owner or administrator)", "security": [{ "bearer": [] }], "parameters": [id_param],
                 "responses": { "200": { "description": "text/csv" }, "404": { "description": "no such submission of yours" } } } },
-            "/api/v1/submissions/{id}/report": { "get": { "summary": "The JSON reports, one per protocol (keys as `poseboard eval --out` writes them)", "parameters": [id_param],
+            "/api/v1/submissions/{id}/report": { "get": { "summary": "The JSON reports, one per protocol or the 2D task's (keys as `poseboard eval --out` writes them)", "parameters": [id_param],
                 "responses": { "200": { "description": "{bop19: {...}, eccv18: {...}}" }, "404": { "description": "no such submission, or a private one of another account" } } } },
             "/api/v1/submissions/{id}/errors/{protocol}": { "get": { "summary": "Every evaluated estimate's errors against each ground-truth instance (the layout of `poseboard eval --errors-out`), owner or administrator",
                 "security": [{ "bearer": [] }], "parameters": [id_param, { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } }],
@@ -154,9 +154,9 @@ fn paths() -> Value {
                     "400": { "description": "not finished, or an unknown criterion" }, "404": { "description": "no such submission or target, or another account's private submission" } } } },
             "/api/v1/me/submissions": { "get": { "summary": "Your submissions, private ones included, newest first, with status, publication state, headline scores, download and action links",
                 "security": [{ "bearer": [] }], "responses": { "200": { "description": "{submissions: [...]}" }, "401": { "description": "no valid API token or session" } } } },
-            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol",
+            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or 2D task (bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
                 "parameters": [
-                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
+                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
                     { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
                     { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
                     { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },

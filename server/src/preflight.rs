@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 
 use evaluator::Dataset;
+use evaluator::coco::{CocoGt, CocoResults};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::results::Results;
 use evaluator::selection::Coverage;
@@ -165,6 +166,64 @@ impl Preflight {
             estimates_evaluated,
             queue_position: 0,
             estimated_seconds: 0.0,
+        }
+    }
+
+    /// Coverage of a valid BOP'22 2D result file against the dataset's target images: the
+    /// same warnings and red flags as a 6D file's where they apply (targets are images here,
+    /// objects are categories).
+    pub fn of_coco(gt: &CocoGt, results: &CocoResults) -> Preflight {
+        let mut with_entry = vec![false; gt.images.len()];
+        let (mut not_for_targets, mut unknown) = (0, Vec::new());
+        for e in &results.entries {
+            match gt.image_index(e.scene_id, e.image_id) {
+                Some(i) => with_entry[i] = true,
+                None => not_for_targets += 1,
+            }
+            if gt.categories.binary_search(&e.category_id).is_err() {
+                unknown.push(e.category_id);
+            }
+        }
+        let targets = gt.images.len();
+        let without = with_entry.iter().filter(|&&b| !b).count();
+        let mut warnings = Vec::new();
+        if without > 0 {
+            warnings.push(format!(
+                "{without} of {} without a detection will count as misses",
+                count(targets, "target image", "target images")
+            ));
+        }
+        if not_for_targets > 0 {
+            warnings.push(format!(
+                "{}, for images that are not test targets, will be ignored",
+                count(not_for_targets, "entry", "entries")
+            ));
+        }
+        let mut red_flags = Vec::new();
+        if without * 2 > targets {
+            red_flags.push(RedFlag::MostTargetsMissing { without, targets });
+        }
+        if !unknown.is_empty() {
+            let estimates = unknown.len();
+            unknown.sort_unstable();
+            unknown.dedup();
+            red_flags.push(RedFlag::UnknownObjects {
+                estimates,
+                objects: unknown
+                    .into_iter()
+                    .map(|c| u32::try_from(c).unwrap_or(u32::MAX))
+                    .collect(),
+            });
+        }
+        Preflight {
+            estimates: results.entries.len(),
+            images: results.image_count(),
+            targets,
+            targets_without_estimate: without,
+            estimates_not_for_targets: not_for_targets,
+            warnings,
+            red_flags,
+            ..Preflight::default()
         }
     }
 

@@ -10,6 +10,10 @@
 //! in one transaction, so a limit met at the fourth file leaves none of the first three behind.
 //! Callers hand over values already parsed at their edge (`MethodName`,
 //! `Visibility`, ...). A refused upload leaves no row behind.
+//!
+//! A `.json` file (or any file when a 2D task is asked for) is a BOP'22 2D result file: parsed
+//! with the evaluator's COCO parser (each problem naming its entry and key), its task the one
+//! asked for or read from its content, and pre-flighted against the dataset's target images.
 
 mod archive;
 
@@ -19,12 +23,13 @@ use std::path::Path;
 use std::sync::Arc;
 
 use evaluator::protocol::ProtocolName;
-use evaluator::results;
+use evaluator::{coco, results};
 use sha2::{Digest, Sha256};
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{Hardware, MethodName, Visibility};
+use crate::dataset_config;
+use crate::domain::{CocoProtocol, Hardware, MethodName, Visibility};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
 use crate::publishing;
@@ -47,8 +52,10 @@ pub struct Upload {
     pub method: MethodName,
     /// The name of a served dataset; `None`: each file's name says it.
     pub dataset: Option<String>,
-    /// The protocols to evaluate under.
+    /// The protocols to evaluate a 6D (CSV) file under.
     pub protocols: Vec<ProtocolName>,
+    /// The 2D task asked for; `None`: a `.json` file's task is inferred from its content.
+    pub task: Option<CocoProtocol>,
     pub meta: MethodMeta,
     pub hardware: Hardware,
     /// As asked; `None`: private for a new submission, and unchanged for a file already
@@ -99,6 +106,8 @@ pub struct Accepted {
 struct Checked {
     file: UploadedFile,
     dataset_id: i64,
+    /// The 2D task of a BOP'22 file (scored for it instead of the protocols).
+    task: Option<CocoProtocol>,
     estimates_count: usize,
     preflight: Preflight,
 }
@@ -111,6 +120,7 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Ac
         method,
         dataset,
         protocols,
+        task,
         meta,
         hardware,
         visibility,
@@ -136,6 +146,9 @@ pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Ac
                     message: format!("{first} and {name} are both for dataset `{ds}`"),
                     problems: Vec::new(),
                 }),
+                None if task.is_some() || is_coco_file(&name) => {
+                    check_coco(app, &ds, file, task).await
+                }
                 None => check(app, &ds, file, &protocols).await,
             },
             Err(e) => Err(e),
@@ -286,9 +299,106 @@ async fn check(
     Ok(Checked {
         file,
         dataset_id: row.id,
+        task: None,
         estimates_count,
         preflight,
     })
+}
+
+/// Whether a file is a BOP'22 2D result file (`METHOD_DATASET-test.json`) by its name.
+fn is_coco_file(name: &str) -> bool {
+    name.to_ascii_lowercase().ends_with(".json")
+}
+
+/// [`check`] for a BOP'22 2D file: parsed with the evaluator's parser (each problem naming its
+/// entry and key), its task the one asked for or, without one, segmentation when an entry has
+/// a mask and detection otherwise; then checked to hold what the task scores, and pre-flighted
+/// against the dataset's target images.
+async fn check_coco(
+    app: &App,
+    dataset: &str,
+    file: UploadedFile,
+    asked: Option<CocoProtocol>,
+) -> AppResult<Checked> {
+    let row = app
+        .store
+        .dataset_by_name(dataset)
+        .await?
+        .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
+    let root = app.dataset(&row).await?.root.clone();
+    let path = file.tmp.to_path_buf();
+    let name = file.name.clone();
+    let parsed = tokio::task::spawn_blocking(move || -> AppResult<_> {
+        let results = match coco::load_coco_results(&path) {
+            Ok(r) => r,
+            Err(evaluator::Error::CocoResults(problems)) => {
+                return Err(entry_problems(&name, &problems));
+            }
+            Err(e) => return Err(AppError::Internal(e.to_string())),
+        };
+        let task = asked.unwrap_or(
+            if results.entries.iter().any(|e| e.segmentation.is_some()) {
+                CocoProtocol::Segmentation
+            } else {
+                CocoProtocol::Detection
+            },
+        );
+        results
+            .require(task.task())
+            .map_err(|problems| entry_problems(&name, &problems))?;
+        let gt = dataset_config::coco_gt(&root, false).map_err(|e| AppError::Invalid {
+            message: format!(
+                "dataset `{}` has no usable 2D ground truth (scene_gt_coco.json): {e}",
+                root.file_name().unwrap_or_default().to_string_lossy()
+            ),
+            problems: Vec::new(),
+        })?;
+        Ok((
+            results.entries.len(),
+            task,
+            Preflight::of_coco(&gt, &results),
+        ))
+    })
+    .await
+    .map_err(|e| AppError::Internal(e.to_string()))?;
+    let (estimates_count, task, preflight) = parsed?;
+    if estimates_count == 0 {
+        return Err(AppError::Invalid {
+            message: format!("{} contains no entry", file.name),
+            problems: Vec::new(),
+        });
+    }
+    Ok(Checked {
+        file,
+        dataset_id: row.id,
+        task: Some(task),
+        estimates_count,
+        preflight,
+    })
+}
+
+/// The problems of a refused BOP'22 file, each naming its entry (from 0) and key.
+fn entry_problems(file_name: &str, problems: &coco::problems::EntryProblems) -> AppError {
+    let mut list: Vec<LineProblem> = problems
+        .problems
+        .iter()
+        .map(|p| LineProblem {
+            file: None,
+            line: 0,
+            message: p.to_string(),
+        })
+        .collect();
+    if problems.omitted > 0 {
+        list.push(LineProblem {
+            file: None,
+            line: 0,
+            message: format!("... and {} more problems", problems.omitted),
+        });
+    }
+    AppError::Invalid {
+        message: format!("{file_name} is not a valid BOP'22 result file"),
+        problems: list,
+    }
 }
 
 /// What every file of one upload shares.
@@ -325,6 +435,7 @@ async fn store_all(
     for Checked {
         file,
         dataset_id,
+        task,
         estimates_count,
         mut preflight,
     } in checked
@@ -347,6 +458,7 @@ async fn store_all(
             size: file.size,
             gzip,
             dataset_id,
+            task,
             estimates_count,
             preflight,
         });
@@ -368,6 +480,7 @@ async fn store_all(
                 meta,
                 dataset_id: k.dataset_id,
                 protocols,
+                task: k.task,
                 visibility,
                 held,
                 file_name: &k.name,
@@ -449,6 +562,7 @@ struct Kept {
     size: u64,
     gzip: Vec<u8>,
     dataset_id: i64,
+    task: Option<CocoProtocol>,
     estimates_count: usize,
     preflight: Preflight,
 }

@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 
 use evaluator::Report;
+use evaluator::coco::CocoReport;
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::report::{Parameters, parameters};
 use serde::{Deserialize, Serialize};
@@ -13,11 +14,12 @@ use crate::auth::Viewer;
 use crate::chart::Chart;
 use crate::clock::now_ms;
 use crate::demo::DEMO_DATASET;
-use crate::domain::{Modality, TrainingData, optional};
+use crate::domain::{BoardProtocol, CocoProtocol, Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
 use crate::publishing;
 use crate::store::accounts::User;
+use crate::store::coco_scores::CocoBoardEntry;
 use crate::store::datasets::DatasetRow;
 use crate::store::scores::{BoardEntry, ScoreRecord};
 use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
@@ -34,14 +36,26 @@ pub struct Cell {
     pub time: Option<f64>,
     /// The method's owner pinned this submission as its entry (otherwise it is the best).
     pub pinned: bool,
-    /// How the score can be reproduced.
-    pub record: ScoreRecord,
+    /// How the score can be reproduced (6D boards).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub record: Option<ScoreRecord>,
     /// The bootstrap 95 % interval of `score` (resampling the dataset's images); absent for a
     /// score stored before intervals were, until it is re-scored.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci95: Option<[f64; 2]>,
+    /// The stored score whose bootstrap replicates the row's interval is made of (6D boards).
     #[serde(skip)]
-    pub score_id: i64,
+    pub score_id: Option<i64>,
+    /// 2D boards: the twelve AP/AR numbers of the report under the toolkit's keys.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub stats: BTreeMap<&'static str, f64>,
+}
+
+impl Cell {
+    /// A 2D board's number `name` (a key of `stats`).
+    pub fn stat(&self, name: &str) -> Option<f64> {
+        self.stats.get(name).copied()
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -78,10 +92,15 @@ pub struct BoardRow {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Leaderboard {
-    pub protocol: ProtocolName,
+    pub protocol: BoardProtocol,
     pub score_name: &'static str,
     pub time_unit: &'static str,
-    pub parameters: Parameters,
+    /// The 6D protocol's parameters (none for a 2D task: COCOeval's are fixed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parameters: Option<Parameters>,
+    /// 2D boards: the keys of the AP/AR numbers, in COCOeval's order (each cell's `stats`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stat_names: Vec<&'static str>,
     /// Every dataset served (each has its own board).
     pub datasets: Vec<DatasetRow>,
     /// The names of the core datasets: the columns of the main table.
@@ -99,6 +118,9 @@ pub struct Leaderboard {
     /// [`OVERLAID`]), overlaid one chart per curve.
     #[serde(skip)]
     pub overlays: Vec<Chart>,
+    /// A 2D board of one dataset: the precision-recall curves of its first rows.
+    #[serde(skip)]
+    pub charts: Vec<Chart>,
 }
 
 /// How many of a dataset's best entries its board's charts overlay.
@@ -194,7 +216,7 @@ impl Query {
         })
     }
 
-    fn matches(&self, e: &BoardEntry) -> bool {
+    fn matches(&self, e: &Placed) -> bool {
         self.training.is_none_or(|t| e.training_data == Some(t))
             && self.modality.is_none_or(|m| e.modality == Some(m))
     }
@@ -212,10 +234,80 @@ pub fn urlencode(s: &str) -> String {
         .collect()
 }
 
-pub fn score_name(p: ProtocolName) -> &'static str {
+pub fn score_name(p: BoardProtocol) -> &'static str {
     match p {
-        ProtocolName::Eccv18 => "recall (VSD, tau 20 mm, theta 0.3)",
-        ProtocolName::Bop19 => "average recall AR = (AR_VSD + AR_MSSD + AR_MSPD) / 3",
+        BoardProtocol::Pose(ProtocolName::Eccv18) => "recall (VSD, tau 20 mm, theta 0.3)",
+        BoardProtocol::Pose(ProtocolName::Bop19) => {
+            "average recall AR = (AR_VSD + AR_MSSD + AR_MSPD) / 3"
+        }
+        BoardProtocol::Coco(CocoProtocol::Detection) => {
+            "AP of the amodal boxes (COCOeval bbox: mean over IoU 0.50:0.05:0.95, 101 recall points, 100 detections per image); the average over the core datasets is AP_C"
+        }
+        BoardProtocol::Coco(CocoProtocol::Segmentation) => {
+            "AP of the visible masks (COCOeval segm: mean over IoU 0.50:0.05:0.95, 101 recall points, 100 detections per image); the average over the core datasets is AP_C"
+        }
+    }
+}
+
+/// How many rows of a 2D dataset board get a curve on its chart (the chart has as many colours).
+const CURVES_ON_A_BOARD: usize = 5;
+
+/// A method's entry on a dataset, as any board shows it.
+struct Placed {
+    method_id: i64,
+    method: String,
+    owner: String,
+    training_data: Option<TrainingData>,
+    modality: Option<Modality>,
+    hardware: String,
+    dataset_id: i64,
+    dataset: String,
+    cell: Cell,
+    objects: BTreeMap<i64, f64>,
+}
+
+impl Placed {
+    fn pose(e: BoardEntry) -> Placed {
+        Placed {
+            cell: cell(&e),
+            method_id: e.method_id,
+            method: e.method,
+            owner: e.owner,
+            training_data: e.training_data,
+            modality: e.modality,
+            hardware: e.hardware,
+            dataset_id: e.dataset_id,
+            dataset: e.dataset,
+            objects: e.object_scores,
+        }
+    }
+
+    fn coco(e: &CocoBoardEntry) -> Placed {
+        Placed {
+            cell: Cell {
+                submission_id: e.submission_id,
+                score: e.report.ap,
+                recall: None,
+                ar_vsd: None,
+                ar_mssd: None,
+                ar_mspd: None,
+                time: e.time_avg,
+                pinned: e.pinned,
+                record: None,
+                ci95: None,
+                score_id: None,
+                stats: e.report.stats().into_iter().collect(),
+            },
+            method_id: e.method_id,
+            method: e.method.clone(),
+            owner: e.owner.clone(),
+            training_data: e.training_data,
+            modality: e.modality,
+            hardware: e.hardware.clone(),
+            dataset_id: e.dataset_id,
+            dataset: e.dataset.clone(),
+            objects: BTreeMap::new(),
+        }
     }
 }
 
@@ -238,7 +330,7 @@ fn shown(score: f64) -> String {
 /// Builds a leaderboard.
 pub async fn leaderboard(
     app: &App,
-    protocol: ProtocolName,
+    protocol: BoardProtocol,
     filter: &BoardFilter,
 ) -> AppResult<Leaderboard> {
     let dataset = filter.dataset.as_deref();
@@ -254,10 +346,22 @@ pub async fn leaderboard(
         _ => None,
     };
     let query = Query::parse(filter, &datasets)?;
-    let entries = app
-        .store
-        .leaderboard(protocol, selected.as_ref().map(|d| d.id))
-        .await?;
+    let selected_id = selected.as_ref().map(|d| d.id);
+    let (entries, coco_entries): (Vec<Placed>, Vec<CocoBoardEntry>) = match protocol {
+        BoardProtocol::Pose(p) => (
+            app.store
+                .leaderboard(p, selected_id)
+                .await?
+                .into_iter()
+                .map(Placed::pose)
+                .collect(),
+            Vec::new(),
+        ),
+        BoardProtocol::Coco(t) => {
+            let coco = app.store.coco_leaderboard(t, selected_id).await?;
+            (coco.iter().map(Placed::coco).collect(), coco)
+        }
+    };
     let core = core_datasets(&datasets);
     let columns: Vec<DatasetRow> = match &selected {
         Some(d) => vec![d.clone()],
@@ -285,10 +389,10 @@ pub async fn leaderboard(
             time: None,
             objects: BTreeMap::new(),
         });
-        row.scores.insert(e.dataset.clone(), cell(e));
+        row.scores.insert(e.dataset.clone(), e.cell.clone());
         if selected.is_some() {
-            row.objects = e.object_scores.clone();
-            object_ids.extend(e.object_scores.keys().copied());
+            row.objects = e.objects.clone();
+            object_ids.extend(e.objects.keys().copied());
         }
     }
     let mut rows: Vec<BoardRow> = by_method.into_values().collect();
@@ -354,14 +458,42 @@ pub async fn leaderboard(
             x.0.cmp(&y.0).then_with(|| y.1.total_cmp(&x.1))
         }),
     }
+    // A dataset's 2D board: the curves of its first rows, in the order shown.
+    let charts = match &selected {
+        Some(d) if protocol.is_coco() => {
+            let reports: Vec<(String, &CocoReport)> = rows
+                .iter()
+                .filter_map(|r| {
+                    let id = r.scores.get(&d.name)?.submission_id;
+                    let e = coco_entries.iter().find(|e| e.submission_id == id)?;
+                    Some((r.method.clone(), &e.report))
+                })
+                .take(CURVES_ON_A_BOARD)
+                .collect();
+            if reports.is_empty() {
+                Vec::new()
+            } else {
+                vec![crate::chart::precision_recall_of_methods(&reports)]
+            }
+        }
+        _ => Vec::new(),
+    };
     Ok(Leaderboard {
         protocol,
         score_name: score_name(protocol),
         time_unit: match protocol {
-            ProtocolName::Eccv18 => "s per target",
-            ProtocolName::Bop19 => "s per image",
+            BoardProtocol::Pose(ProtocolName::Eccv18) => "s per target",
+            _ => "s per image",
         },
-        parameters: parameters(&Protocol::named(protocol)),
+        parameters: match protocol {
+            BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p))),
+            BoardProtocol::Coco(_) => None,
+        },
+        stat_names: match &coco_entries[..] {
+            [] => Vec::new(),
+            [first, ..] => first.report.stats().iter().map(|(k, _)| *k).collect(),
+        },
+        charts,
         core: core.into_iter().map(|d| d.name).collect(),
         columns,
         datasets,
@@ -423,13 +555,13 @@ async fn average_intervals(
     let ids: Vec<i64> = rows
         .iter()
         .filter(|r| r.average.is_some())
-        .flat_map(|r| cells(r).into_iter().map(|c| c.score_id))
+        .flat_map(|r| cells(r).into_iter().filter_map(|c| c.score_id))
         .collect();
     let replicates = app.store.replicates(&ids).await?;
     for row in rows.iter_mut().filter(|r| r.average.is_some()) {
         let sets: Option<Vec<&Vec<f64>>> = cells(&*row)
             .iter()
-            .map(|c| replicates.get(&c.score_id))
+            .map(|c| c.score_id.and_then(|id| replicates.get(&id)))
             .collect();
         let Some(sets) = sets.filter(|s| !s.is_empty()) else {
             continue;
@@ -457,9 +589,10 @@ fn cell(e: &BoardEntry) -> Cell {
         ar_mspd: e.score.ar_mspd,
         time: e.score.time_avg,
         pinned: e.pinned,
-        record: e.score.record.clone(),
+        record: Some(e.score.record.clone()),
         ci95: e.score.ci95,
-        score_id: e.score.id,
+        score_id: Some(e.score.id),
+        stats: BTreeMap::new(),
     }
 }
 
@@ -486,6 +619,9 @@ pub struct SubmissionView {
     pub scores: BTreeMap<ProtocolName, Report>,
     /// Per protocol scored, how the score can be reproduced.
     pub records: BTreeMap<ProtocolName, ScoreRecord>,
+    /// A 2D task's report (the keys of `poseboard eval --protocol bop22-det|bop22-seg --out`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coco: Option<CocoReport>,
     /// Per protocol with a public entry: the method's entry on this dataset, and whether it is
     /// this submission.
     pub entries: Vec<EntryStatus>,
@@ -500,7 +636,7 @@ pub struct SubmissionView {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct EntryStatus {
-    pub protocol: ProtocolName,
+    pub protocol: BoardProtocol,
     /// The submission that is the method's entry on the dataset under this protocol.
     pub submission_id: i64,
     /// It is this submission.
@@ -589,19 +725,32 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
     };
     let reports = app.store.reports_of_submission(id).await?;
     let records = app.store.score_records(id).await?;
-    let charts = reports.iter().flat_map(crate::chart::charts).collect();
-    let entries = app
+    let coco = match submission.task {
+        Some(_) => app.store.coco_report(id).await?,
+        None => None,
+    };
+    let mut charts: Vec<Chart> = reports.iter().flat_map(crate::chart::charts).collect();
+    charts.extend(coco.as_ref().map(crate::chart::precision_recall));
+    let entry = |protocol: BoardProtocol, submission_id: i64, pinned: bool| EntryStatus {
+        protocol,
+        submission_id,
+        is_this: submission_id == id,
+        reason: if pinned { "pinned" } else { "best" },
+    };
+    let mut entries: Vec<EntryStatus> = app
         .store
         .entries(submission.method_id, submission.dataset_id)
         .await?
         .into_iter()
-        .map(|e| EntryStatus {
-            protocol: e.protocol,
-            submission_id: e.submission_id,
-            is_this: e.submission_id == id,
-            reason: if e.pinned { "pinned" } else { "best" },
-        })
+        .map(|e| entry(e.protocol.into(), e.submission_id, e.pinned))
         .collect();
+    if let Some(task) = submission.task {
+        let found = app
+            .store
+            .coco_entry(task, submission.method_id, submission.dataset_id)
+            .await?;
+        entries.extend(found.map(|(sid, pinned)| entry(BoardProtocol::Coco(task), sid, pinned)));
+    }
     Ok(SubmissionView {
         entries,
         pinned: app.store.is_pinned(id).await?,
@@ -616,6 +765,7 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
         submission,
         scores: reports.into_iter().map(|r| (r.protocol, r)).collect(),
         records: records.into_iter().map(|r| (r.protocol, r)).collect(),
+        coco,
         charts,
     })
 }
@@ -625,7 +775,7 @@ fn remaining(s: &SubmissionRow) -> i64 {
     if s.work > 0 {
         (s.work - s.work_done).max(0)
     } else {
-        s.estimates_count * s.protocols.len() as i64
+        s.estimates_count * s.protocols.len().max(1) as i64
     }
 }
 
@@ -668,6 +818,9 @@ pub struct MySubmission {
     pub publication: String,
     /// Per protocol, the headline score (AR for bop19, recall for eccv18).
     pub scores: BTreeMap<ProtocolName, f64>,
+    /// A 2D task's AP, once scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ap: Option<f64>,
     pub url: String,
     /// Downloads and actions.
     pub links: OwnerLinks,
@@ -690,12 +843,19 @@ pub async fn my_submissions(app: &App, user: &User) -> AppResult<MySubmissions> 
             .or_default()
             .insert(sc.protocol, sc.score);
     }
+    let mut aps: BTreeMap<i64, f64> = app
+        .store
+        .coco_scores_of_owner(user.id)
+        .await?
+        .into_iter()
+        .collect();
     Ok(MySubmissions {
         submissions: rows
             .into_iter()
             .map(|s| MySubmission {
                 publication: publishing::state(&s),
                 scores: scores.remove(&s.id).unwrap_or_default(),
+                ap: aps.remove(&s.id),
                 url: format!("/submissions/{}", s.id),
                 links: OwnerLinks::of(&s),
                 submission: s,

@@ -117,6 +117,7 @@ fn new_submission<'a>(
         meta: &f.meta,
         dataset_id,
         protocols,
+        task: None,
         visibility: Visibility::Public,
         file_name: "m_synthA-test.csv",
         file_sha256: sha,

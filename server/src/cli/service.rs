@@ -8,7 +8,8 @@ use crate::accounts;
 use crate::app::{App, Role};
 use crate::config::{Config, ServeConfig};
 use crate::demo::{
-    CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_results,
+    CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_coco_results,
+    write_demo_results,
 };
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::routes::deadlines::Deadlines;
@@ -62,6 +63,9 @@ pub enum DatasetCommand {
         out: PathBuf,
         #[arg(long, default_value_t = 11)]
         seed: u64,
+        /// Write the BOP'22 2D files instead (demo-detector boxes, demo-segmenter masks).
+        #[arg(long)]
+        coco: bool,
     },
 }
 
@@ -194,9 +198,19 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             println!("wrote a synthetic BOP dataset to {}", dir.display());
             Ok(())
         }
-        DatasetCommand::DemoResults { dataset, out, seed } => {
+        DatasetCommand::DemoResults {
+            dataset,
+            out,
+            seed,
+            coco,
+        } => {
             std::fs::create_dir_all(&out)?;
-            for demo in write_demo_results(&dataset, &out, seed)? {
+            let demos = if coco {
+                write_demo_coco_results(&dataset, &out, seed)?
+            } else {
+                write_demo_results(&dataset, &out, seed)?
+            };
+            for demo in demos {
                 println!("{}: {}", demo.method, demo.path.display());
             }
             Ok(())

@@ -12,6 +12,7 @@ use std::f64::consts::TAU;
 use std::path::Path;
 
 use anyhow::Result;
+use evaluator::coco::rle::Rle;
 use evaluator::math::{Intrinsics, Mat3, Pose, Vec3};
 use evaluator::pose_error::vsd::PixelRays;
 use evaluator::render::{DepthWindow, Renderer};
@@ -129,6 +130,7 @@ pub(super) fn write_scene(
     let mut cameras = BTreeMap::new();
     let mut gts = BTreeMap::new();
     let mut infos = BTreeMap::new();
+    let mut coco = CocoFiles::default();
     let mut targets = Vec::new();
     let n = opts.images_per_scene;
     for im_id in 0..n {
@@ -166,13 +168,78 @@ pub(super) fn write_scene(
                 depth_scale: DEPTH_SCALE,
             },
         );
+        coco.add_image(im_id, opts.image_size, &image);
         gts.insert(im_id, image.gt);
         infos.insert(im_id, image.info);
     }
     write_json_object(&dir.join("scene_camera.json"), &cameras)?;
     write_json_object(&dir.join("scene_gt.json"), &gts)?;
     write_json_object(&dir.join("scene_gt_info.json"), &infos)?;
+    let categories: Vec<u32> = shapes.iter().map(|s| s.id).collect();
+    let dataset = split_dir.parent().and_then(Path::file_name);
+    coco.write(
+        &dir,
+        &categories,
+        &dataset.unwrap_or_default().to_string_lossy(),
+    )?;
     Ok(targets)
+}
+
+/// The scene's `scene_gt_coco.json` (amodal boxes) and `scene_gt_coco_modal.json` (modal
+/// boxes), as bop_toolkit's `calc_gt_coco.py` makes them from the visible masks: one
+/// annotation per instance with a visible pixel, its mask as uncompressed RLE, its area the
+/// visible pixels, `ignore` set below 10 % visible.
+#[derive(Default)]
+struct CocoFiles {
+    images: Vec<serde_json::Value>,
+    /// Per annotation: the fields both files share, the amodal and the modal box.
+    annotations: Vec<(serde_json::Value, [i64; 4], [i64; 4])>,
+}
+
+impl CocoFiles {
+    fn add_image(&mut self, im_id: u32, (width, height): (u32, u32), image: &ImageData) {
+        self.images.push(serde_json::json!({
+            "id": im_id, "file_name": format!("rgb/{im_id:06}.png"),
+            "width": width, "height": height,
+        }));
+        for ((gt, info), mask) in image.gt.iter().zip(&image.info).zip(&image.masks) {
+            let Some(modal) = mask.bbox else { continue };
+            let fields = serde_json::json!({
+                "id": self.annotations.len() + 1, "image_id": im_id, "category_id": gt.obj_id,
+                "iscrowd": 0, "area": mask.rle.area(),
+                "segmentation": {"counts": mask.rle.counts(), "size": [height, width]},
+                "width": width, "height": height,
+                "ignore": info.visib_fract < MIN_VISIB_FRACT,
+            });
+            self.annotations.push((fields, info.bbox_obj, modal));
+        }
+    }
+
+    fn write(&self, dir: &Path, categories: &[u32], dataset: &str) -> Result<()> {
+        let categories: Vec<serde_json::Value> = categories
+            .iter()
+            .map(|id| serde_json::json!({"id": id, "name": id.to_string(), "supercategory": dataset}))
+            .collect();
+        for (file, modal) in [
+            ("scene_gt_coco.json", false),
+            ("scene_gt_coco_modal.json", true),
+        ] {
+            let annotations: Vec<serde_json::Value> = self
+                .annotations
+                .iter()
+                .map(|(fields, amodal_box, modal_box)| {
+                    let mut a = fields.clone();
+                    a["bbox"] = serde_json::json!(if modal { modal_box } else { amodal_box });
+                    a
+                })
+                .collect();
+            let content = serde_json::json!({
+                "images": self.images, "annotations": annotations, "categories": categories,
+            });
+            std::fs::write(dir.join(file), content.to_string())?;
+        }
+        Ok(())
+    }
 }
 
 /// Special instances an image gets besides its cluster of objects.
@@ -187,6 +254,7 @@ struct Roles {
 struct ImageData {
     gt: Vec<GtEntry>,
     info: Vec<GtInfo>,
+    masks: Vec<VisibleMask>,
     depth: Vec<u16>,
     rgb: Vec<u8>,
 }
@@ -529,10 +597,10 @@ fn make_image(rng: &mut ChaCha8Rng, shapes: &[Shape], roles: Roles, size: (u32, 
             measured.push(rays.distance(x, y, mm));
         }
     }
-    let info = renders
+    let (info, masks) = renders
         .iter()
         .map(|r| gt_info(r, size, &rays, &measured))
-        .collect();
+        .unzip();
     let gt = placed
         .iter()
         .map(|p| {
@@ -548,6 +616,7 @@ fn make_image(rng: &mut ChaCha8Rng, shapes: &[Shape], roles: Roles, size: (u32, 
     ImageData {
         gt,
         info,
+        masks,
         depth,
         rgb: colour_image(&view, &canvas, &colours),
     }
@@ -761,7 +830,7 @@ fn gt_info(
     (width, height): (u32, u32),
     rays: &PixelRays,
     measured: &[f64],
-) -> GtInfo {
+) -> (GtInfo, VisibleMask) {
     let mut all = Bounds::default();
     let mut px_count_all = 0;
     for y in 0..render.height {
@@ -777,6 +846,7 @@ fn gt_info(
     }
     let (mut px_count_valid, mut px_count_visib) = (0, 0);
     let mut visib = Bounds::default();
+    let mut mask = vec![false; (width * height) as usize];
     for_each_in_image(render, (width, height), |x, y, d| {
         let test = measured[(y * width + x) as usize];
         if test > 0.0 {
@@ -785,9 +855,18 @@ fn gt_info(
         if visible(VisibMode::Bop19, test, rays.distance(x, y, d), VISIB_DELTA) {
             px_count_visib += 1;
             visib.add(i64::from(x), i64::from(y));
+            mask[(y * width + x) as usize] = true;
         }
     });
-    GtInfo {
+    let visible_mask = VisibleMask {
+        rle: Rle::encode_row_major(&mask, height, width)
+            .expect("a mask of the image's size encodes"),
+        // pycoco_utils' `bbox_from_binary_mask`: a single pixel is 1 wide.
+        bbox: visib
+            .0
+            .map(|[x0, y0, x1, y1]| [x0, y0, x1 - x0 + 1, y1 - y0 + 1]),
+    };
+    let info = GtInfo {
         // bop_toolkit leaves the object's box unset too when nothing of it is visible.
         bbox_obj: if px_count_visib > 0 {
             all.bbox()
@@ -803,7 +882,16 @@ fn gt_info(
         } else {
             0.0
         },
-    }
+    };
+    (info, visible_mask)
+}
+
+/// The visible part of an instance, as `mask_visib/` holds it: what the COCO ground truth is
+/// made of.
+struct VisibleMask {
+    rle: Rle,
+    /// The box around it (modal); `None` when nothing of the instance is visible.
+    bbox: Option<[i64; 4]>,
 }
 
 /// Flat colours, lit by a light above the camera using normals from the noiseless depth.

@@ -16,7 +16,7 @@ use serde_json::json;
 use crate::app::{App, AppState};
 use crate::auth::Viewer;
 use crate::board_cache::Format;
-use crate::domain::{MethodForm, Visibility};
+use crate::domain::{BoardProtocol, MethodForm, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::overlay::{self, TargetId};
 use crate::routes::boards;
@@ -241,7 +241,11 @@ async fn file(
     let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
         .await
         .map_err(|e| AppError::Internal(e.to_string()))?;
-    Ok(attachment("text/csv; charset=utf-8", &s.file_name, bytes))
+    let content_type = match s.task {
+        Some(_) => "application/json",
+        None => "text/csv; charset=utf-8",
+    };
+    Ok(attachment(content_type, &s.file_name, bytes))
 }
 
 /// The reports (one per protocol, as `poseboard eval --out` writes them): for whoever may see
@@ -252,8 +256,12 @@ async fn report(
     Path(id): Path<i64>,
 ) -> AppResult<Response> {
     let view = views::submission(&app, id, &viewer).await?;
-    let body = serde_json::to_vec(&view.scores)
-        .map_err(|e| AppError::Internal(format!("report JSON: {e}")))?;
+    // Keyed by protocol: the 6D reports, or the 2D task's one.
+    let body = match (&view.coco, view.submission.task) {
+        (Some(report), Some(task)) => serde_json::to_vec(&json!({ task.as_str(): report })),
+        _ => serde_json::to_vec(&view.scores),
+    }
+    .map_err(|e| AppError::Internal(format!("report JSON: {e}")))?;
     Ok(attachment(
         "application/json",
         &format!("submission-{id}-report.json"),
@@ -362,7 +370,7 @@ async fn leaderboard(
     Path(protocol): Path<String>,
     Query(filter): Query<views::BoardFilter>,
 ) -> AppResult<Response> {
-    let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
+    let protocol = BoardProtocol::named(&protocol).ok_or(AppError::NotFound)?;
     let key = boards::key(Format::Json, protocol, &filter);
     boards::answer(&app, &headers, key, || {
         leaderboard_json(&app, protocol, &filter)
@@ -373,7 +381,7 @@ async fn leaderboard(
 /// A board's JSON as it stands: served live, and kept by snapshots.
 pub(crate) async fn leaderboard_json(
     app: &App,
-    protocol: ProtocolName,
+    protocol: BoardProtocol,
     filter: &views::BoardFilter,
 ) -> AppResult<Vec<u8>> {
     let board = views::leaderboard(app, protocol, filter).await?;

@@ -4,9 +4,9 @@
 
 use std::future::Future;
 
+use crate::domain::BoardProtocol;
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use evaluator::protocol::ProtocolName;
 
 use crate::app::App;
 use crate::board_cache::{BoardKey, Format};
@@ -14,7 +14,7 @@ use crate::error::AppResult;
 use crate::views::BoardFilter;
 
 /// The cache key of a board query.
-pub fn key(format: Format, protocol: ProtocolName, q: &BoardFilter) -> BoardKey {
+pub fn key(format: Format, protocol: BoardProtocol, q: &BoardFilter) -> BoardKey {
     BoardKey {
         format,
         protocol,

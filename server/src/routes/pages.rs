@@ -1,8 +1,6 @@
 //! The HTML pages: leaderboards, methods, submissions, the upload form. Each renders the same
 //! view as its JSON twin under `/api/v1`.
 
-use std::str::FromStr;
-
 use askama::Template;
 use askama_web::WebTemplate;
 use axum::Router;
@@ -19,7 +17,7 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::auth::Viewer;
 use crate::board_cache::Format;
-use crate::domain::{MethodForm, Modality, ModelScope, TrainingData, Visibility};
+use crate::domain::{BoardProtocol, MethodForm, Modality, ModelScope, TrainingData, Visibility};
 use crate::error::{AppError, AppResult, ErrorBody};
 use crate::routes::boards;
 use crate::routes::deadlines;
@@ -145,19 +143,19 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 #[template(path = "leaderboard.html")]
 pub(crate) struct LeaderboardPage {
     pub(crate) board: Leaderboard,
-    pub(crate) protocols: [ProtocolName; 2],
+    pub(crate) protocols: [BoardProtocol; 4],
 }
 
 impl LeaderboardPage {
     /// The page of a board as it stands: served live, and kept by snapshots.
     pub(crate) async fn of(
         app: &App,
-        protocol: ProtocolName,
+        protocol: BoardProtocol,
         q: &BoardFilter,
     ) -> AppResult<LeaderboardPage> {
         Ok(LeaderboardPage {
             board: views::leaderboard(app, protocol, q).await?,
-            protocols: [ProtocolName::Bop19, ProtocolName::Eccv18],
+            protocols: BoardProtocol::ALL,
         })
     }
 }
@@ -174,7 +172,7 @@ async fn home(
     headers: HeaderMap,
     Query(q): Query<BoardFilter>,
 ) -> AppResult<Response> {
-    leaderboard_page(&app, &headers, ProtocolName::Bop19, q).await
+    leaderboard_page(&app, &headers, ProtocolName::Bop19.into(), q).await
 }
 
 async fn leaderboard(
@@ -183,7 +181,7 @@ async fn leaderboard(
     Path(protocol): Path<String>,
     Query(q): Query<BoardFilter>,
 ) -> AppResult<Response> {
-    let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
+    let protocol = BoardProtocol::named(&protocol).ok_or(AppError::NotFound)?;
     leaderboard_page(&app, &headers, protocol, q).await
 }
 
@@ -192,7 +190,7 @@ async fn leaderboard(
 async fn leaderboard_page(
     app: &AppState,
     headers: &HeaderMap,
-    protocol: ProtocolName,
+    protocol: BoardProtocol,
     q: BoardFilter,
 ) -> AppResult<Response> {
     let key = boards::key(Format::Html, protocol, &q);

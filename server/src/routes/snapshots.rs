@@ -155,7 +155,7 @@ async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<
             };
             let q = query(protocol, dataset);
             let page = SnapshotBoardPage {
-                page: LeaderboardPage::of(app, protocol, &filter).await?,
+                page: LeaderboardPage::of(app, protocol.into(), &filter).await?,
                 id,
                 taken_at,
                 permalink: format!("/snapshots/{id}{q}"),
@@ -175,7 +175,7 @@ async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<
                 protocol,
                 dataset: dataset.clone(),
                 format: BoardFormat::Json,
-                gzip: gzip(&leaderboard_json(app, protocol, &filter).await?),
+                gzip: gzip(&leaderboard_json(app, protocol.into(), &filter).await?),
             });
         }
     }

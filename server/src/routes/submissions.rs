@@ -12,7 +12,7 @@ use sha2::{Digest, Sha256};
 use tokio::io::AsyncWriteExt;
 
 use crate::app::App;
-use crate::domain::{Description, Hardware, Link, MethodName, Visibility, optional};
+use crate::domain::{CocoProtocol, Description, Hardware, Link, MethodName, Visibility, optional};
 use crate::error::{AppError, AppResult};
 use crate::store::methods::MethodMeta;
 use crate::submissions::{Upload, UploadedFile};
@@ -47,9 +47,19 @@ impl Fields {
     /// Checks every field and makes the upload the submissions service takes.
     pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
         let method = MethodName::parse(&self.method)?;
-        let protocols = match self.protocol.trim() {
-            "" => vec![ProtocolName::Bop19, ProtocolName::Eccv18],
-            p => vec![ProtocolName::from_str(p).map_err(AppError::BadRequest)?],
+        let (protocols, task) = match self.protocol.trim() {
+            "" => (vec![ProtocolName::Bop19, ProtocolName::Eccv18], None),
+            p => match CocoProtocol::from_str(p) {
+                Ok(task) => (Vec::new(), Some(task)),
+                Err(_) => (
+                    vec![ProtocolName::from_str(p).map_err(|_| {
+                        AppError::BadRequest(format!(
+                            "unknown protocol `{p}` (bop19, eccv18, bop22-det or bop22-seg)"
+                        ))
+                    })?],
+                    None,
+                ),
+            },
         };
         let visibility = match self.visibility.trim() {
             "" => None,
@@ -72,6 +82,7 @@ impl Fields {
             method,
             dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
             protocols,
+            task,
             meta,
             hardware: Hardware::parse(&self.hardware)?,
             visibility,

@@ -24,6 +24,7 @@ const TABLES: &[&str] = &[
     "submission_files",
     "scores",
     "object_scores",
+    "coco_scores",
     "entry_pins",
     "estimate_errors",
     "api_tokens",

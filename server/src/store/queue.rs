@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 
 use evaluator::Report;
+use evaluator::coco::CocoReport;
 use evaluator::protocol::ProtocolName;
 use sqlx::{Any, Row, Transaction};
 
@@ -120,32 +121,10 @@ impl Store {
         let work: i64 = reports.iter().map(|r| r.estimates_evaluated as i64).sum();
         let mut tx = self.write_transaction().await?;
         let now = now_ms();
-        let updated = sqlx::query(
-            "UPDATE submissions SET status = 'done', progress = 1, finished_at = $1, \
-             lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2, \
-             work = $3, work_done = $3, eval_ms = $4, rescore = 0, rescore_worker = NULL, \
-             rescore_lease_until = NULL, rescore_attempts = 0 \
-             WHERE id = $5 AND worker = $6 AND status = 'running'",
-        )
-        .bind(now)
-        .bind(evaluator::report::EVALUATOR_VERSION)
-        .bind(work)
-        .bind(finished.eval_ms)
-        .bind(id)
-        .bind(worker)
-        .execute(&mut *tx)
-        .await?;
-        if updated.rows_affected() != 1 {
+        if !mark_done(&mut tx, id, worker, work, finished.eval_ms, now).await? {
             // Done by this very worker already: an earlier try committed, but its answer was
             // lost with the connection.
-            let mine = sqlx::query(
-                "SELECT id FROM submissions WHERE id = $1 AND worker = $2 AND status = 'done'",
-            )
-            .bind(id)
-            .bind(worker)
-            .fetch_optional(&mut *tx)
-            .await?
-            .is_some();
+            let mine = done_by(&mut tx, id, worker).await?;
             tx.rollback().await?;
             return Ok(mine);
         }
@@ -155,6 +134,53 @@ impl Store {
             .await?;
         errors::replace(&mut tx, id, &finished.errors, now).await?;
         insert_scores(&mut tx, id, finished, now).await?;
+        board_version::bump(&mut tx).await?;
+        tx.commit().await?;
+        self.board_changed();
+        Ok(true)
+    }
+
+    /// [`Store::finish`] for a 2D task: its report goes to `coco_scores`, with its AP for the
+    /// boards, in the transaction that marks the job done and bumps the board version.
+    pub async fn finish_coco(
+        &self,
+        id: i64,
+        worker: &str,
+        report: &CocoReport,
+        eval_ms: i64,
+    ) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let now = now_ms();
+        let work = report.entries_evaluated as i64;
+        if !mark_done(&mut tx, id, worker, work, eval_ms, now).await? {
+            let mine = done_by(&mut tx, id, worker).await?;
+            tx.rollback().await?;
+            return Ok(mine);
+        }
+        let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
+            column: "report_json",
+            value: e.to_string(),
+        })?;
+        sqlx::query("DELETE FROM coco_scores WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query(
+            "INSERT INTO coco_scores (submission_id, task, ap, time_avg, entries_evaluated, \
+             report_json, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7)",
+        )
+        // The time is NULL or a number; a cached statement would keep the first one's type.
+        .persistent(false)
+        .bind(id)
+        .bind(report.protocol.as_str())
+        .bind(report.ap)
+        // A negative time (the toolkit's -1) means the file gave none.
+        .bind(Some(report.average_time_per_image).filter(|t| *t >= 0.0))
+        .bind(work)
+        .bind(json)
+        .bind(now)
+        .execute(&mut *tx)
+        .await?;
         board_version::bump(&mut tx).await?;
         tx.commit().await?;
         self.board_changed();
@@ -314,4 +340,47 @@ pub(crate) fn replicates_from(bytes: &[u8]) -> Option<Vec<f64>> {
             .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()))
             .collect()
     })
+}
+
+/// Marks a running job of `worker` done; false when it is not (or no longer) its.
+async fn mark_done(
+    tx: &mut sqlx::Transaction<'static, sqlx::Any>,
+    id: i64,
+    worker: &str,
+    work: i64,
+    eval_ms: i64,
+    now: i64,
+) -> StoreResult<bool> {
+    let updated = sqlx::query(
+        "UPDATE submissions SET status = 'done', progress = 1, finished_at = $1, \
+         lease_until = NULL, error = NULL, fault = NULL, evaluator_version = $2, \
+         work = $3, work_done = $3, eval_ms = $4, rescore = 0, rescore_worker = NULL, \
+         rescore_lease_until = NULL, rescore_attempts = 0 \
+         WHERE id = $5 AND worker = $6 AND status = 'running'",
+    )
+    .bind(now)
+    .bind(evaluator::report::EVALUATOR_VERSION)
+    .bind(work)
+    .bind(eval_ms)
+    .bind(id)
+    .bind(worker)
+    .execute(&mut **tx)
+    .await?;
+    Ok(updated.rows_affected() == 1)
+}
+
+/// Whether the job is done by `worker` already.
+async fn done_by(
+    tx: &mut sqlx::Transaction<'static, sqlx::Any>,
+    id: i64,
+    worker: &str,
+) -> StoreResult<bool> {
+    Ok(
+        sqlx::query("SELECT id FROM submissions WHERE id = $1 AND worker = $2 AND status = 'done'")
+            .bind(id)
+            .bind(worker)
+            .fetch_optional(&mut **tx)
+            .await?
+            .is_some(),
+    )
 }

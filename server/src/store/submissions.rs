@@ -16,7 +16,7 @@ use super::board_version;
 use super::methods::MethodMeta;
 use super::{Backend, Store, StoreError, StoreResult, parse_column};
 use crate::clock::now_ms;
-use crate::domain::{Hardware, MethodName, Visibility};
+use crate::domain::{CocoProtocol, Hardware, MethodName, Visibility};
 use crate::preflight::Preflight;
 
 /// Lifecycle of a submission (which is also its evaluation job).
@@ -97,7 +97,10 @@ pub struct SubmissionRow {
     pub method: String,
     pub dataset_id: i64,
     pub dataset: String,
+    /// The 6D protocols it is evaluated under (none for a 2D task).
     pub protocols: Vec<ProtocolName>,
+    /// The BOP'22 2D task it is scored for, instead of 6D protocols.
+    pub task: Option<CocoProtocol>,
     pub visibility: Visibility,
     pub file_name: String,
     pub file_sha256: String,
@@ -144,6 +147,8 @@ pub struct NewSubmission<'a> {
     pub meta: &'a MethodMeta,
     pub dataset_id: i64,
     pub protocols: &'a [ProtocolName],
+    /// A 2D task instead of the protocols.
+    pub task: Option<CocoProtocol>,
     pub visibility: Visibility,
     pub file_name: &'a str,
     pub file_sha256: &'a str,
@@ -203,19 +208,34 @@ pub struct Deleted {
     pub file_unused: bool,
 }
 
-fn protocols_to_text(p: &[ProtocolName]) -> String {
-    p.iter().map(|p| p.as_str()).collect::<Vec<_>>().join(",")
+/// The `protocols` column: the 6D protocols, comma-separated, or the 2D task alone (so the
+/// duplicate check and its unique index tell a detection from a segmentation of one file).
+fn protocols_to_text(new: &NewSubmission<'_>) -> String {
+    match new.task {
+        Some(task) => task.as_str().to_string(),
+        None => new
+            .protocols
+            .iter()
+            .map(|p| p.as_str())
+            .collect::<Vec<_>>()
+            .join(","),
+    }
 }
 
-fn protocols_from_text(s: String) -> StoreResult<Vec<ProtocolName>> {
-    s.split(',')
+fn protocols_from_text(s: String) -> StoreResult<(Vec<ProtocolName>, Option<CocoProtocol>)> {
+    if let Ok(task) = CocoProtocol::from_str(&s) {
+        return Ok((Vec::new(), Some(task)));
+    }
+    let protocols = s
+        .split(',')
         .map(|p| {
             ProtocolName::from_str(p).map_err(|_| StoreError::Corrupt {
                 column: "protocols",
                 value: s.clone(),
             })
         })
-        .collect()
+        .collect::<StoreResult<_>>()?;
+    Ok((protocols, None))
 }
 
 pub(crate) const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method, s.dataset_id, \
@@ -231,13 +251,15 @@ pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
         column: "preflight_json",
         value: preflight,
     })?;
+    let (protocols, task) = protocols_from_text(row.try_get("protocols")?)?;
     Ok(SubmissionRow {
         id: row.try_get("id")?,
         method_id: row.try_get("method_id")?,
         method: row.try_get("method")?,
         dataset_id: row.try_get("dataset_id")?,
         dataset: row.try_get("dataset")?,
-        protocols: protocols_from_text(row.try_get("protocols")?)?,
+        protocols,
+        task,
         visibility: if row.try_get::<i64, _>("public")? != 0 {
             Visibility::Public
         } else {
@@ -536,7 +558,7 @@ impl Store {
             return Ok(None);
         };
         let sha: String = row.try_get("file_sha256")?;
-        for table in ["estimate_errors", "entry_pins", "scores"] {
+        for table in ["estimate_errors", "entry_pins", "scores", "coco_scores"] {
             // `table` comes from the list above, never from the request.
             let sql = format!("DELETE FROM {table} WHERE submission_id = $1");
             sqlx::query(sqlx::AssertSqlSafe(sql))
@@ -593,7 +615,7 @@ async fn create_one(
         .bind(method_id)
         .bind(new.dataset_id)
         .bind(new.file_sha256)
-        .bind(protocols_to_text(new.protocols))
+        .bind(protocols_to_text(new))
         .fetch_optional(&mut **tx)
         .await?;
         if let Some(row) = same {
@@ -654,7 +676,7 @@ async fn create_one(
     )
     .bind(method_id)
     .bind(new.dataset_id)
-    .bind(protocols_to_text(new.protocols))
+    .bind(protocols_to_text(new))
     .bind(i64::from(new.visibility == Visibility::Public))
     .bind(new.file_name)
     .bind(new.file_sha256)

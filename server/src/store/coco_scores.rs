@@ -1,0 +1,148 @@
+//! Scores of the BOP'22 2D tasks: one row per submission with its AP (what the boards rank
+//! by), its time and the evaluator's whole `CocoReport` as JSON, read back typed. A method's
+//! entry on a dataset follows the 6D rule: the submission its owner pinned, if it is public,
+//! finished and scored for the task; otherwise its best public finished one, the earlier on a
+//! tie.
+
+use evaluator::coco::CocoReport;
+use sqlx::Row;
+use sqlx::any::AnyRow;
+
+use super::methods::optional_column;
+use super::{Store, StoreError, StoreResult};
+use crate::domain::{CocoProtocol, Modality, TrainingData};
+
+/// A method's entry on a dataset's board of a 2D task.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CocoBoardEntry {
+    pub method_id: i64,
+    pub method: String,
+    /// The name of the account the method belongs to.
+    pub owner: String,
+    pub training_data: Option<TrainingData>,
+    pub modality: Option<Modality>,
+    pub hardware: String,
+    pub dataset_id: i64,
+    pub dataset: String,
+    pub submission_id: i64,
+    /// Its owner pinned it (otherwise it is the best).
+    pub pinned: bool,
+    /// Seconds per image; `None` when the file gave no time.
+    pub time_avg: Option<f64>,
+    pub report: CocoReport,
+}
+
+/// The id of the entry, for the task `$1`, of the method and dataset of the submission `s`.
+const ENTRY_SQL: &str = "COALESCE((SELECT p.submission_id FROM entry_pins p \
+     JOIN submissions s3 ON s3.id = p.submission_id \
+     JOIN coco_scores c3 ON c3.submission_id = s3.id AND c3.task = $1 \
+     WHERE p.method_id = s.method_id AND p.dataset_id = s.dataset_id \
+     AND s3.status = 'done' AND s3.public = 1 AND s3.hidden = 0), \
+     (SELECT s2.id FROM submissions s2 JOIN coco_scores c2 ON c2.submission_id = s2.id \
+     WHERE s2.method_id = s.method_id AND s2.dataset_id = s.dataset_id \
+     AND s2.status = 'done' AND s2.public = 1 AND s2.hidden = 0 AND c2.task = $1 \
+     ORDER BY c2.ap DESC, s2.id LIMIT 1))";
+
+fn report(row: &AnyRow) -> StoreResult<CocoReport> {
+    let json: String = row.try_get("report_json")?;
+    serde_json::from_str(&json).map_err(|_| StoreError::Corrupt {
+        column: "report_json",
+        value: json,
+    })
+}
+
+impl Store {
+    /// The report of a submission of a 2D task, once scored.
+    pub async fn coco_report(&self, submission_id: i64) -> StoreResult<Option<CocoReport>> {
+        sqlx::query("SELECT report_json FROM coco_scores WHERE submission_id = $1")
+            .bind(submission_id)
+            .fetch_optional(&self.pool)
+            .await?
+            .as_ref()
+            .map(report)
+            .transpose()
+    }
+
+    /// The AP of every scored 2D submission of `owner`, by submission.
+    pub async fn coco_scores_of_owner(&self, owner: i64) -> StoreResult<Vec<(i64, f64)>> {
+        let rows = sqlx::query(
+            "SELECT c.submission_id, c.ap FROM coco_scores c \
+             JOIN submissions s ON s.id = c.submission_id WHERE s.owner_id = $1 \
+             ORDER BY c.submission_id",
+        )
+        .bind(owner)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| Ok((r.try_get("submission_id")?, r.try_get("ap")?)))
+            .collect()
+    }
+
+    /// The entry, for `task`, of a method on a dataset: the submission and whether it is pinned.
+    pub async fn coco_entry(
+        &self,
+        task: CocoProtocol,
+        method_id: i64,
+        dataset_id: i64,
+    ) -> StoreResult<Option<(i64, bool)>> {
+        let sql = format!(
+            "SELECT {ENTRY_SQL} AS entry, (SELECT p.submission_id FROM entry_pins p \
+             WHERE p.method_id = $2 AND p.dataset_id = $3) AS pin \
+             FROM (SELECT CAST($2 AS BIGINT) AS method_id, CAST($3 AS BIGINT) AS dataset_id) s"
+        );
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(task.as_str())
+            .bind(method_id)
+            .bind(dataset_id)
+            .fetch_one(&self.pool)
+            .await?;
+        let entry: Option<i64> = row.try_get("entry")?;
+        let pin: Option<i64> = row.try_get("pin")?;
+        Ok(entry.map(|id| (id, pin == Some(id))))
+    }
+
+    /// The board of a 2D task, in one query: every method's entry per dataset (optionally one
+    /// dataset only), best AP first.
+    pub async fn coco_leaderboard(
+        &self,
+        task: CocoProtocol,
+        dataset_id: Option<i64>,
+    ) -> StoreResult<Vec<CocoBoardEntry>> {
+        let sql = format!(
+            "SELECT c.submission_id, c.time_avg, c.report_json, s.method_id, m.name AS method, \
+             COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
+             s.dataset_id, d.name AS dataset, \
+             CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
+             THEN 1 ELSE 0 END AS BIGINT) AS pinned \
+             FROM coco_scores c JOIN submissions s ON s.id = c.submission_id \
+             JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
+             LEFT JOIN users u ON u.id = m.owner_id \
+             WHERE c.task = $1 AND s.status = 'done' AND s.public = 1 AND s.hidden = 0 \
+             AND d.retired = 0 AND ($2 < 0 OR s.dataset_id = $2) AND s.id = {ENTRY_SQL} \
+             ORDER BY c.ap DESC, m.id, c.id"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(task.as_str())
+            .bind(dataset_id.unwrap_or(-1))
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter()
+            .map(|r| {
+                Ok(CocoBoardEntry {
+                    method_id: r.try_get("method_id")?,
+                    method: r.try_get("method")?,
+                    owner: r.try_get("owner")?,
+                    training_data: optional_column(r, "training_data")?,
+                    modality: optional_column(r, "modality")?,
+                    hardware: r.try_get("hardware")?,
+                    dataset_id: r.try_get("dataset_id")?,
+                    dataset: r.try_get("dataset")?,
+                    submission_id: r.try_get("submission_id")?,
+                    pinned: r.try_get::<i64, _>("pinned")? != 0,
+                    time_avg: r.try_get("time_avg")?,
+                    report: report(r)?,
+                })
+            })
+            .collect()
+    }
+}
