@@ -176,12 +176,7 @@ pub(super) fn write_scene(
     write_json_object(&dir.join("scene_gt.json"), &gts)?;
     write_json_object(&dir.join("scene_gt_info.json"), &infos)?;
     let categories: Vec<u32> = shapes.iter().map(|s| s.id).collect();
-    let dataset = split_dir.parent().and_then(Path::file_name);
-    coco.write(
-        &dir,
-        &categories,
-        &dataset.unwrap_or_default().to_string_lossy(),
-    )?;
+    coco.write(&dir, &categories)?;
     Ok(targets)
 }
 
@@ -215,10 +210,12 @@ impl CocoFiles {
         }
     }
 
-    fn write(&self, dir: &Path, categories: &[u32], dataset: &str) -> Result<()> {
+    /// The supercategory is not the dataset's name, as in BOP's files, but fixed: the same
+    /// options must give the same bytes in any folder.
+    fn write(&self, dir: &Path, categories: &[u32]) -> Result<()> {
         let categories: Vec<serde_json::Value> = categories
             .iter()
-            .map(|id| serde_json::json!({"id": id, "name": id.to_string(), "supercategory": dataset}))
+            .map(|id| serde_json::json!({"id": id, "name": id.to_string(), "supercategory": "synthetic"}))
             .collect();
         for (file, modal) in [
             ("scene_gt_coco.json", false),

@@ -334,7 +334,7 @@ fn replicates_bytes(values: &[f64]) -> Vec<u8> {
 
 /// Replicates as read back; `None` for a length that is no whole number of f64s.
 pub(crate) fn replicates_from(bytes: &[u8]) -> Option<Vec<f64>> {
-    (bytes.len() % 8 == 0).then(|| {
+    bytes.len().is_multiple_of(8).then(|| {
         bytes
             .chunks_exact(8)
             .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()))
