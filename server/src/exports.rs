@@ -9,6 +9,7 @@ use std::fmt::Write;
 use evaluator::protocol::ProtocolName;
 use serde_json::json;
 
+use crate::domain::BoardProtocol;
 use crate::error::{AppError, AppResult};
 use crate::store::scores::ScoreRecord;
 use crate::views::{BoardRow, Leaderboard};
@@ -71,6 +72,20 @@ impl Export {
 }
 
 /// The parameters of a record as compact JSON (empty when not recorded).
+/// The record's columns; empty for a 2D board's score, which keeps none.
+fn record_fields(r: Option<&ScoreRecord>) -> [String; 5] {
+    match r {
+        Some(r) => [
+            r.evaluator_version.clone().unwrap_or_default(),
+            r.protocol.as_str().to_string(),
+            parameters(r),
+            r.dataset_hash.clone().unwrap_or_default(),
+            r.file_sha256.clone(),
+        ],
+        None => Default::default(),
+    }
+}
+
 fn parameters(r: &ScoreRecord) -> String {
     r.parameters
         .as_ref()
@@ -139,21 +154,19 @@ fn csv(board: &Leaderboard) -> String {
         ];
         for d in &board.columns {
             match row.scores.get(&d.name) {
-                Some(c) => cells.extend([
-                    c.score.to_string(),
-                    number(c.recall),
-                    number(c.ar_vsd),
-                    number(c.ar_mssd),
-                    number(c.ar_mspd),
-                    number(c.time),
-                    c.submission_id.to_string(),
-                    c.pinned.to_string(),
-                    c.record.evaluator_version.clone().unwrap_or_default(),
-                    c.record.protocol.as_str().to_string(),
-                    parameters(&c.record),
-                    c.record.dataset_hash.clone().unwrap_or_default(),
-                    c.record.file_sha256.clone(),
-                ]),
+                Some(c) => {
+                    cells.extend([
+                        c.score.to_string(),
+                        number(c.recall),
+                        number(c.ar_vsd),
+                        number(c.ar_mssd),
+                        number(c.ar_mspd),
+                        number(c.time),
+                        c.submission_id.to_string(),
+                        c.pinned.to_string(),
+                    ]);
+                    cells.extend(record_fields(c.record.as_ref()));
+                }
                 None => cells.extend(PER_DATASET.iter().map(|_| String::new())),
             }
         }
@@ -281,8 +294,9 @@ fn latex(board: &Leaderboard) -> String {
         })
         .collect();
     let what = match board.protocol {
-        ProtocolName::Eccv18 => "recall",
-        ProtocolName::Bop19 => "average recall",
+        BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
+        BoardProtocol::Pose(ProtocolName::Bop19) => "average recall",
+        BoardProtocol::Coco(_) => "average precision",
     };
     let mut out = String::new();
     let _ = writeln!(
@@ -329,7 +343,9 @@ fn latex(board: &Leaderboard) -> String {
     );
     for row in &board.rows {
         for (dataset, c) in &row.scores {
-            let r = &c.record;
+            let Some(r) = &c.record else {
+                continue;
+            };
             let _ = writeln!(
                 out,
                 "% {}; {}; {}; {}; {}; {}; {}; {}",

@@ -114,13 +114,10 @@ pub struct Leaderboard {
     /// What the rows are ordered by: `average`, `time`, `method` or a dataset name.
     pub sorted_by: String,
     pub rows: Vec<BoardRow>,
-    /// With one dataset selected: the recall curves of its best entries (at most
-    /// [`OVERLAID`]), overlaid one chart per curve.
+    /// With one dataset selected: the curves of its best entries (at most [`OVERLAID`]),
+    /// overlaid one chart per curve: recall curves on a 6D board, precision-recall on a 2D one.
     #[serde(skip)]
     pub overlays: Vec<Chart>,
-    /// A 2D board of one dataset: the precision-recall curves of its first rows.
-    #[serde(skip)]
-    pub charts: Vec<Chart>,
 }
 
 /// How many of a dataset's best entries its board's charts overlay.
@@ -248,9 +245,6 @@ pub fn score_name(p: BoardProtocol) -> &'static str {
         }
     }
 }
-
-/// How many rows of a 2D dataset board get a curve on its chart (the chart has as many colours).
-const CURVES_ON_A_BOARD: usize = 5;
 
 /// A method's entry on a dataset, as any board shows it.
 struct Placed {
@@ -439,9 +433,26 @@ pub async fn leaderboard(
         row.rank = Some(rank);
         previous = Some((key, rank));
     }
-    let overlays = match &selected {
-        Some(d) => overlays(app, protocol, &d.name, &rows).await?,
-        None => Vec::new(),
+    let overlays = match (&selected, protocol) {
+        (Some(d), BoardProtocol::Pose(p)) => overlays(app, p, &d.name, &rows).await?,
+        // A dataset's 2D board: the precision-recall curves of its first rows.
+        (Some(d), BoardProtocol::Coco(_)) => {
+            let reports: Vec<(String, &CocoReport)> = rows
+                .iter()
+                .filter_map(|r| {
+                    let id = r.scores.get(&d.name)?.submission_id;
+                    let e = coco_entries.iter().find(|e| e.submission_id == id)?;
+                    Some((r.method.clone(), &e.report))
+                })
+                .take(OVERLAID)
+                .collect();
+            if reports.is_empty() {
+                Vec::new()
+            } else {
+                vec![crate::chart::precision_recall_of_methods(&reports)]
+            }
+        }
+        (None, _) => Vec::new(),
     };
     // Another order keeps each row's rank: `#` is always the score's.
     let last = |v: Option<f64>| v.map_or((1, 0.0), |v| (0, v));
@@ -458,26 +469,6 @@ pub async fn leaderboard(
             x.0.cmp(&y.0).then_with(|| y.1.total_cmp(&x.1))
         }),
     }
-    // A dataset's 2D board: the curves of its first rows, in the order shown.
-    let charts = match &selected {
-        Some(d) if protocol.is_coco() => {
-            let reports: Vec<(String, &CocoReport)> = rows
-                .iter()
-                .filter_map(|r| {
-                    let id = r.scores.get(&d.name)?.submission_id;
-                    let e = coco_entries.iter().find(|e| e.submission_id == id)?;
-                    Some((r.method.clone(), &e.report))
-                })
-                .take(CURVES_ON_A_BOARD)
-                .collect();
-            if reports.is_empty() {
-                Vec::new()
-            } else {
-                vec![crate::chart::precision_recall_of_methods(&reports)]
-            }
-        }
-        _ => Vec::new(),
-    };
     Ok(Leaderboard {
         protocol,
         score_name: score_name(protocol),
@@ -493,7 +484,6 @@ pub async fn leaderboard(
             [] => Vec::new(),
             [first, ..] => first.report.stats().iter().map(|(k, _)| *k).collect(),
         },
-        charts,
         core: core.into_iter().map(|d| d.name).collect(),
         columns,
         datasets,

@@ -2,15 +2,13 @@
 //! query of the board pages. They are read fresh on every request rather than through the
 //! board cache: a download is rare, and a fresh read follows every change at once.
 
-use std::str::FromStr;
-
 use axum::Router;
 use axum::extract::{Path, Query, State};
 use axum::response::Response;
 use axum::routing::get;
-use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
+use crate::domain::BoardProtocol;
 use crate::error::{AppError, AppResult};
 use crate::exports::Export;
 use crate::routes::api::attachment;
@@ -53,7 +51,7 @@ async fn export(
     filter: &BoardFilter,
     format: Export,
 ) -> AppResult<Response> {
-    let protocol = ProtocolName::from_str(protocol).map_err(|_| AppError::NotFound)?;
+    let protocol = BoardProtocol::named(protocol).ok_or(AppError::NotFound)?;
     let board = views::leaderboard(app, protocol, filter).await?;
     let body = format.render(&board)?;
     Ok(attachment(
