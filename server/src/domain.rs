@@ -340,6 +340,15 @@ impl BoardProtocol {
     }
 }
 
+/// As stored (a snapshot's boards) and named in URLs.
+impl FromStr for BoardProtocol {
+    type Err = ();
+
+    fn from_str(name: &str) -> Result<Self, ()> {
+        BoardProtocol::named(name).ok_or(())
+    }
+}
+
 impl From<evaluator::protocol::ProtocolName> for BoardProtocol {
     fn from(p: evaluator::protocol::ProtocolName) -> Self {
         BoardProtocol::Pose(p)

@@ -12,7 +12,7 @@ fn paths() -> Value {
     let id_param =
         json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
     let export_params = json!([
-        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
+        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
         { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
         { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
         { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
@@ -186,7 +186,7 @@ fn paths() -> Value {
             "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",
                 "parameters": [
                     id_param,
-                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18"] }, "description": "default: bop19" },
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] }, "description": "default: bop19" },
                     { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset's board; default: all datasets" }
                 ],
                 "responses": { "200": { "description": "the body /api/v1/leaderboards/{protocol} answered then" }, "404": { "description": "no such snapshot or board" } } } },

@@ -75,9 +75,9 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
     assert_eq!(r.status().as_u16(), 201);
     let taken: Value = r.json().expect("json");
     let id = taken["id"].as_i64().expect("an id");
-    // Each protocol, all datasets and the one dataset.
+    // Each 6D protocol and 2D task, all datasets and the one dataset.
     let boards = taken["boards"].as_array().expect("boards");
-    assert_eq!(boards.len(), 4, "{taken}");
+    assert_eq!(boards.len(), 8, "{taken}");
 
     // The stored JSON is what the live board served at that moment, byte for byte.
     let board_queries = [
@@ -85,6 +85,10 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
         ("bop19", "synthA"),
         ("eccv18", ""),
         ("eccv18", "synthA"),
+        ("bop22-det", ""),
+        ("bop22-det", "synthA"),
+        ("bop22-seg", ""),
+        ("bop22-seg", "synthA"),
     ];
     let live_json = |protocol: &str, dataset: &str| {
         bytes(&format!(

@@ -8,7 +8,6 @@
 
 use std::io::Read;
 use std::ops::Deref;
-use std::str::FromStr;
 
 use askama::Template;
 use askama_web::WebTemplate;
@@ -17,13 +16,13 @@ use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
-use evaluator::protocol::ProtocolName;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use crate::app::{App, AppState};
 use crate::board_cache::gzip;
 use crate::clock::now_ms;
+use crate::domain::BoardProtocol;
 use crate::error::{AppError, AppResult};
 use crate::routes::api::leaderboard_json;
 use crate::routes::boards::accepts_gzip;
@@ -51,7 +50,7 @@ pub fn api_router() -> Router<AppState> {
 /// A board of a snapshot, as the permalink of a paper names it.
 #[derive(Clone, Debug, Serialize)]
 pub struct BoardLink {
-    pub protocol: ProtocolName,
+    pub protocol: BoardProtocol,
     /// Empty for the board of all datasets.
     pub dataset: String,
     pub url: String,
@@ -93,7 +92,7 @@ impl From<SnapshotRow> for SnapshotEntry {
 }
 
 /// The query naming one board: `?protocol=P` and, for one dataset's board, `&dataset=D`.
-fn query(protocol: ProtocolName, dataset: &str) -> String {
+fn query(protocol: BoardProtocol, dataset: &str) -> String {
     if dataset.is_empty() {
         format!("?protocol={}", protocol.as_str())
     } else {
@@ -146,8 +145,8 @@ pub(crate) async fn take(app: &App, actor: &User) -> AppResult<SnapshotEntry> {
 async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<SnapshotBoard>> {
     let mut datasets = vec![String::new()];
     datasets.extend(app.store.datasets().await?.into_iter().map(|d| d.name));
-    let mut boards = Vec::with_capacity(4 * datasets.len());
-    for protocol in [ProtocolName::Bop19, ProtocolName::Eccv18] {
+    let mut boards = Vec::with_capacity(2 * BoardProtocol::ALL.len() * datasets.len());
+    for protocol in BoardProtocol::ALL {
         for dataset in &datasets {
             let filter = BoardFilter {
                 dataset: (!dataset.is_empty()).then(|| dataset.clone()),
@@ -155,7 +154,7 @@ async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<
             };
             let q = query(protocol, dataset);
             let page = SnapshotBoardPage {
-                page: LeaderboardPage::of(app, protocol.into(), &filter).await?,
+                page: LeaderboardPage::of(app, protocol, &filter).await?,
                 id,
                 taken_at,
                 permalink: format!("/snapshots/{id}{q}"),
@@ -175,7 +174,7 @@ async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<
                 protocol,
                 dataset: dataset.clone(),
                 format: BoardFormat::Json,
-                gzip: gzip(&leaderboard_json(app, protocol.into(), &filter).await?),
+                gzip: gzip(&leaderboard_json(app, protocol, &filter).await?),
             });
         }
     }
@@ -242,8 +241,8 @@ async fn stored(
     format: BoardFormat,
 ) -> AppResult<Response> {
     let id: i64 = id.parse().map_err(|_| AppError::NotFound)?;
-    let protocol = ProtocolName::from_str(q.protocol.as_deref().unwrap_or("bop19"))
-        .map_err(|_| AppError::NotFound)?;
+    let protocol =
+        BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
     let dataset = q.dataset.as_deref().unwrap_or_default();
     let gz = app
         .store

@@ -2,11 +2,11 @@
 //! (gzip-compressed) so that what a paper cites is served back exactly, whatever changes later
 //! (scores, templates, the evaluator).
 
-use evaluator::protocol::ProtocolName;
 use serde::Serialize;
 use sqlx::Row;
 
 use super::{Store, StoreResult, parse_column};
+use crate::domain::BoardProtocol;
 
 /// Which rendering of a board a snapshot holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -26,7 +26,7 @@ impl BoardFormat {
 
 /// One stored board: which one, and its bytes gzip-compressed.
 pub struct SnapshotBoard {
-    pub protocol: ProtocolName,
+    pub protocol: BoardProtocol,
     /// Empty for the board of all datasets.
     pub dataset: String,
     pub format: BoardFormat,
@@ -41,7 +41,7 @@ pub struct SnapshotRow {
     /// The administrator who took it.
     pub taken_by: String,
     /// The boards it holds, as (protocol, dataset; empty for all datasets), each in both formats.
-    pub boards: Vec<(ProtocolName, String)>,
+    pub boards: Vec<(BoardProtocol, String)>,
 }
 
 impl Store {
@@ -132,7 +132,7 @@ impl Store {
         }))
     }
 
-    async fn snapshot_boards(&self, id: i64) -> StoreResult<Vec<(ProtocolName, String)>> {
+    async fn snapshot_boards(&self, id: i64) -> StoreResult<Vec<(BoardProtocol, String)>> {
         let rows = sqlx::query(
             "SELECT DISTINCT protocol, dataset FROM snapshot_boards WHERE snapshot_id = $1 \
              ORDER BY protocol, dataset",
@@ -154,7 +154,7 @@ impl Store {
     pub async fn snapshot_board(
         &self,
         id: i64,
-        protocol: ProtocolName,
+        protocol: BoardProtocol,
         dataset: &str,
         format: BoardFormat,
     ) -> StoreResult<Option<Vec<u8>>> {
