@@ -168,7 +168,7 @@ fn coco_service(kind: Db) {
         );
     }
     assert!(page.contains("<svg") && page.contains("Precision vs recall"));
-    assert!(page.contains("<polyline") && page.contains(">masks</span>"));
+    assert!(page.contains("<polyline") && page.contains(" masks</span>"));
     let json = get_json(&format!(
         "{base}/api/v1/leaderboards/bop22-seg?dataset=synthdemo"
     ));

@@ -121,7 +121,10 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
         assert_eq!(json, live_json(protocol, dataset), "{protocol} {dataset}");
         let html = bytes(&format!("{base}/snapshots/{id}{q}"));
         let text = String::from_utf8(html.clone()).expect("utf-8");
-        assert!(text.contains("early-method"), "{text}");
+        // The 2D boards are empty: the method has 6D results only.
+        if !protocol.starts_with("bop22") {
+            assert!(text.contains("early-method"), "{text}");
+        }
         assert!(text.contains(&format!("Snapshot {id} of ")), "{text}");
         assert!(
             text.contains(&format!("/snapshots/{id}{}", q.replace('&', "&amp;")))
