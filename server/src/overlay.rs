@@ -9,7 +9,7 @@ use evaluator::results;
 use crate::app::App;
 use crate::auth::Viewer;
 use crate::error::{AppError, AppResult};
-use crate::uploaded_file;
+use crate::{uploaded_file, views};
 
 /// A test target: (scene_id, im_id, obj_id).
 #[derive(Clone, Copy, Debug)]
@@ -30,10 +30,7 @@ pub async fn target_png(
     target: TargetId,
     protocol: Option<ProtocolName>,
 ) -> AppResult<Vec<u8>> {
-    let s = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !s.is_public() && !viewer.can_see(s.owner_id) {
-        return Err(AppError::NotFound);
-    }
+    let s = views::visible_submission(app, id, viewer).await?;
     let protocol = match protocol {
         Some(p) if s.protocols.contains(&p) => p,
         Some(_) => return Err(AppError::NotFound),
