@@ -34,6 +34,15 @@ impl NTop {
         }
     }
 
+    /// How many of an object's `instances` valid instances in one image are targets: at most
+    /// n for `Top(n)`, all of them otherwise.
+    pub fn targets(self, instances: usize) -> usize {
+        match self {
+            NTop::Top(n) => instances.min(n as usize),
+            NTop::InstCount | NTop::All => instances,
+        }
+    }
+
     pub fn from_i64(n: i64) -> Result<Self, String> {
         match n {
             -1 => Ok(NTop::InstCount),

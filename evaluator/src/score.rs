@@ -69,10 +69,7 @@ pub fn counted_instances(gts: &[(u32, f64, bool)], matched: &[bool], n_top: NTop
     }
     let mut counted = Vec::new();
     for mut gt_ids in per_obj.into_values() {
-        let targets = match n_top {
-            NTop::Top(n) => gt_ids.len().min(n as usize),
-            NTop::InstCount | NTop::All => gt_ids.len(),
-        };
+        let targets = n_top.targets(gt_ids.len());
         // Stable: equal keys keep the lower gt id first.
         gt_ids.sort_by(|&a, &b| {
             matched[b]
@@ -137,10 +134,7 @@ impl<'a> Targets<'a> {
                 *per_obj.entry(g.0).or_default() += 1;
             }
             for (obj, count) in per_obj {
-                let count = match n_top {
-                    NTop::Top(n) => count.min(n as usize),
-                    NTop::InstCount | NTop::All => count,
-                };
+                let count = n_top.targets(count);
                 targets += count;
                 *obj_targets.entry(obj).or_default() += count;
                 *scene_targets.entry(im.scene_id).or_default() += count;

@@ -76,9 +76,7 @@ pub async fn apply(
     let flags = &s.preflight.red_flags;
     let publishing = visibility == Visibility::Public && s.visibility == Visibility::Private;
     if publishing && !flags.is_empty() && !confirm {
-        if s.visibility == Visibility::Private {
-            app.store.hold_publication(s.id).await?;
-        }
+        app.store.hold_publication(s.id).await?;
         return Err(AppError::Conflict(format!(
             "publication is held: {}; confirm to publish anyway (`confirm=true`)",
             reasons(flags)

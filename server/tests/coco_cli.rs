@@ -2,12 +2,13 @@
 //! runs them on the COCO reference fixture (`tests/fixtures/coco`), checked against the scores
 //! bop_toolkit's `eval_bop22_coco.py` computed there.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
+use common::{eval_report, poseboard};
 use serde_json::Value;
-
-const BIN: &str = env!("CARGO_BIN_EXE_poseboard");
 
 const STATS: [&str; 12] = [
     "AP",
@@ -28,13 +29,6 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/coco")
 }
 
-fn poseboard(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("poseboard runs")
-}
-
 fn path(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
@@ -44,33 +38,12 @@ fn expected(case: &str) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).expect("expected file")).expect("json")
 }
 
+/// `poseboard eval` of a case's file on the folder of datasets (the file's name says which).
 fn eval(case: &str, extra: &[&str]) -> (Output, Value) {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("report.json");
-    // A folder of datasets: the file's name says which.
-    let datasets = fixtures().join("dataset");
     let results = fixtures()
         .join("results")
         .join(format!("{case}_tudl-test.json"));
-    let mut args = vec![
-        "eval",
-        "--dataset",
-        path(&datasets),
-        "--results",
-        path(&results),
-        "--out",
-        path(&out),
-    ];
-    args.extend_from_slice(extra);
-    let output = poseboard(&args);
-    assert!(
-        output.status.success(),
-        "poseboard eval failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let report = serde_json::from_str(&std::fs::read_to_string(&out).expect("report written"))
-        .expect("report is JSON");
-    (output, report)
+    eval_report(&fixtures().join("dataset"), &results, extra)
 }
 
 fn assert_scores(report: &Value, want: &Value) {

@@ -3,17 +3,10 @@
 
 mod common;
 
-use std::process::{Command, Output};
+use std::process::Output;
 
-use common::{BIN, fixtures};
+use common::{eval_report, fixtures, poseboard};
 use serde_json::Value;
-
-fn poseboard(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("poseboard runs")
-}
 
 fn expected(name: &str, file: &str) -> Value {
     let path = fixtures().join("expected").join(name).join(file);
@@ -21,29 +14,8 @@ fn expected(name: &str, file: &str) -> Value {
 }
 
 fn eval(result: &str, extra: &[&str]) -> (Output, Value) {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("report.json");
-    let dataset = fixtures().join("dataset");
     let results = fixtures().join("results").join(format!("{result}.csv"));
-    let mut args = vec![
-        "eval",
-        "--dataset",
-        dataset.to_str().expect("utf-8 path"),
-        "--results",
-        results.to_str().expect("utf-8 path"),
-        "--out",
-        out.to_str().expect("utf-8 path"),
-    ];
-    args.extend_from_slice(extra);
-    let output = poseboard(&args);
-    assert!(
-        output.status.success(),
-        "poseboard eval failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let report = serde_json::from_str(&std::fs::read_to_string(&out).expect("report written"))
-        .expect("report is JSON");
-    (output, report)
+    eval_report(&fixtures().join("dataset"), &results, extra)
 }
 
 #[test]

@@ -13,7 +13,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use reqwest::blocking::{Client, multipart};
@@ -377,6 +377,42 @@ pub fn cli_report(dataset: &Path, results: &Path, protocol: &str) -> Value {
         .expect("poseboard eval runs");
     assert!(status.success());
     serde_json::from_str(&std::fs::read_to_string(out.path()).expect("report")).expect("json")
+}
+
+/// `poseboard` run with `args`, as a user runs it.
+pub fn poseboard(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("poseboard runs")
+}
+
+/// `poseboard eval` of `results` on `dataset` with `extra` arguments, which must succeed: its
+/// output and the JSON report it wrote.
+pub fn eval_report(dataset: &Path, results: &Path, extra: &[&str]) -> (Output, Value) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("report.json");
+    let utf8 = |p: &'_ Path| p.to_str().expect("utf-8 path").to_owned();
+    let (dataset, results, out_arg) = (utf8(dataset), utf8(results), utf8(&out));
+    let mut args = vec![
+        "eval",
+        "--dataset",
+        &dataset,
+        "--results",
+        &results,
+        "--out",
+        &out_arg,
+    ];
+    args.extend_from_slice(extra);
+    let output = poseboard(&args);
+    assert!(
+        output.status.success(),
+        "poseboard eval failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report = serde_json::from_str(&std::fs::read_to_string(&out).expect("report written"))
+        .expect("report is JSON");
+    (output, report)
 }
 
 /// An upload request without a body: authentication is decided before any body is read, and
