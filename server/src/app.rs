@@ -13,6 +13,7 @@ use crate::config::Config;
 use crate::dataset_config::{folder_options, is_dataset_folder};
 use crate::dataset_hash;
 use crate::error::{AppError, AppResult};
+use crate::parsed_files::ParsedFiles;
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
 use crate::uploaded_file;
@@ -27,6 +28,8 @@ pub struct App {
     pub pool: rayon::ThreadPool,
     /// Rendered leaderboards, shared by every reader.
     pub boards: BoardCache,
+    /// Result files parsed for the pictures of their targets.
+    pub parsed_files: ParsedFiles,
     datasets: Mutex<HashMap<i64, Loaded>>,
 }
 
@@ -74,6 +77,7 @@ impl App {
         let app = Arc::new(App {
             store,
             boards,
+            parsed_files: ParsedFiles::new(crate::parsed_files::DEFAULT_BUDGET),
             config,
             role,
             wake: Notify::new(),

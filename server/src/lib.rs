@@ -25,6 +25,7 @@ pub mod moderation;
 pub mod openapi;
 pub mod ops;
 pub mod overlay;
+pub mod parsed_files;
 pub mod preflight;
 pub mod publishing;
 pub mod rescoring;

@@ -1,6 +1,7 @@
 //! The picture of a target seen through a submission (see `evaluator::overlay` for what it
 //! shows and its colours), as a PNG. The estimates are read from the stored upload, as the
-//! worker read them, and the picture is drawn and encoded on the evaluation threads.
+//! worker read them (parsed once per file, see `parsed_files`), and the picture is drawn and
+//! encoded on the evaluation threads.
 
 use evaluator::overlay::{RgbImage, target_picture};
 use evaluator::protocol::{Protocol, ProtocolName};
@@ -48,18 +49,28 @@ pub async fn target_png(
         .find(|t| (t.scene_id, t.im_id, t.obj_id) == (target.scene_id, target.im_id, target.obj_id))
         .copied()
         .ok_or(AppError::NotFound)?;
-    let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
-        .await
-        .map_err(|e| AppError::Internal(e.to_string()))?;
+    let sha256 = &s.file_sha256;
+    let results = app
+        .parsed_files
+        .get_or_parse(sha256, move || async move {
+            let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), sha256)
+                .await
+                .map_err(|e| AppError::Internal(e.to_string()))?;
+            let (tx, rx) = tokio::sync::oneshot::channel();
+            app.pool.spawn(move || {
+                let _ = tx.send(results::parse_results(&bytes[..]).map_err(|p| {
+                    AppError::Internal(format!("the stored file no longer parses: {p}"))
+                }));
+            });
+            rx.await
+                .map_err(|_| AppError::Internal("parsing the stored file crashed".into()))?
+        })
+        .await?;
     let (tx, rx) = tokio::sync::oneshot::channel();
     app.pool.spawn(move || {
-        let picture = results::parse_results(&bytes[..])
-            .map_err(|p| AppError::Internal(format!("the stored file no longer parses: {p}")))
-            .and_then(|results| {
-                let n_top = Protocol::named(protocol).n_top;
-                target_picture(&dataset, &results, &found, n_top)
-                    .map_err(|e| AppError::Internal(e.to_string()))
-            })
+        let n_top = Protocol::named(protocol).n_top;
+        let picture = target_picture(&dataset, &results, &found, n_top)
+            .map_err(|e| AppError::Internal(e.to_string()))
             .and_then(|picture| encode(&picture));
         let _ = tx.send(picture);
     });
