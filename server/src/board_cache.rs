@@ -51,8 +51,8 @@ pub enum Format {
 pub struct BoardKey {
     pub format: Format,
     pub protocol: BoardProtocol,
-    /// The query's (dataset, sort, training, modality).
-    pub query: [Option<String>; 4],
+    /// The query's (dataset, sort, training, modality, curves).
+    pub query: [Option<String>; 5],
 }
 
 /// A rendered board.

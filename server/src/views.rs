@@ -118,6 +118,18 @@ pub struct Leaderboard {
     /// overlaid one chart per curve: recall curves on a 6D board, precision-recall on a 2D one.
     #[serde(skip)]
     pub overlays: Vec<Chart>,
+    /// With one dataset selected: every ranked method, whether its curves are drawn, and the
+    /// link that draws them or stops drawing them (none when [`OVERLAID`] are drawn already).
+    #[serde(skip)]
+    pub curve_choices: Vec<CurveChoice>,
+}
+
+/// A method offered for the overlaid curves of a dataset's board.
+#[derive(Clone, Debug)]
+pub struct CurveChoice {
+    pub method: String,
+    pub drawn: bool,
+    pub href: Option<String>,
 }
 
 /// How many of a dataset's best entries its board's charts overlay.
@@ -134,6 +146,9 @@ pub struct BoardFilter {
     pub training: Option<String>,
     /// Only methods using this input (`rgb`, `depth`, `rgb-d`).
     pub modality: Option<String>,
+    /// With one dataset: the methods whose curves the charts overlay, as method ids separated
+    /// by commas (at most [`OVERLAID`]); without it, the best ranked entries.
+    pub curves: Option<String>,
 }
 
 impl BoardFilter {
@@ -150,6 +165,7 @@ impl BoardFilter {
             ("training", &self.training),
             ("modality", &self.modality),
             ("sort", &self.sort),
+            ("curves", &self.curves),
         ] {
             if k == key {
                 if !value.is_empty() {
@@ -190,6 +206,8 @@ struct Query {
     sort: Sort,
     training: Option<TrainingData>,
     modality: Option<Modality>,
+    /// The methods chosen for the curves, when chosen.
+    curves: Option<Vec<i64>>,
 }
 
 impl Query {
@@ -210,6 +228,7 @@ impl Query {
             sort,
             training: optional(&field(&filter.training))?,
             modality: optional(&field(&filter.modality))?,
+            curves: curves(&field(&filter.curves))?,
         })
     }
 
@@ -217,6 +236,31 @@ impl Query {
         self.training.is_none_or(|t| e.training_data == Some(t))
             && self.modality.is_none_or(|m| e.modality == Some(m))
     }
+}
+
+/// The `curves` of a board query: method ids separated by commas, at most [`OVERLAID`].
+fn curves(value: &str) -> AppResult<Option<Vec<i64>>> {
+    if value.is_empty() {
+        return Ok(None);
+    }
+    let mut ids = Vec::new();
+    for part in value.split(',') {
+        let id = part.trim().parse::<i64>().map_err(|_| {
+            AppError::BadRequest(format!(
+                "curves takes method ids separated by commas, not `{part}`"
+            ))
+        })?;
+        if !ids.contains(&id) {
+            ids.push(id);
+        }
+    }
+    if ids.len() > OVERLAID {
+        return Err(AppError::BadRequest(format!(
+            "curves takes at most {OVERLAID} methods, not {}",
+            ids.len()
+        )));
+    }
+    Ok(Some(ids))
 }
 
 /// `s` as a query string value.
@@ -433,18 +477,30 @@ pub async fn leaderboard(
         row.rank = Some(rank);
         previous = Some((key, rank));
     }
+    // The rows whose curves a dataset's board draws, in rank order.
+    let drawn: Vec<&BoardRow> = match &query.curves {
+        _ if selected.is_none() => Vec::new(),
+        None => rows
+            .iter()
+            .filter(|r| r.rank.is_some())
+            .take(OVERLAID)
+            .collect(),
+        Some(ids) => rows
+            .iter()
+            .filter(|r| r.rank.is_some() && ids.contains(&r.method_id))
+            .collect(),
+    };
     let overlays = match (&selected, protocol) {
-        (Some(d), BoardProtocol::Pose(p)) => overlays(app, p, &d.name, &rows).await?,
-        // A dataset's 2D board: the precision-recall curves of its first rows.
+        (Some(d), BoardProtocol::Pose(p)) => overlays(app, p, &d.name, &drawn).await?,
+        // A dataset's 2D board: the precision-recall curves.
         (Some(d), BoardProtocol::Coco(_)) => {
-            let reports: Vec<(String, &CocoReport)> = rows
+            let reports: Vec<(String, &CocoReport)> = drawn
                 .iter()
                 .filter_map(|r| {
                     let id = r.scores.get(&d.name)?.submission_id;
                     let e = coco_entries.iter().find(|e| e.submission_id == id)?;
                     Some((r.method.clone(), &e.report))
                 })
-                .take(OVERLAID)
                 .collect();
             if reports.is_empty() {
                 Vec::new()
@@ -454,6 +510,7 @@ pub async fn leaderboard(
         }
         (None, _) => Vec::new(),
     };
+    let curve_choices = curve_choices(&rows, &drawn, filter);
     // Another order keeps each row's rank: `#` is always the score's.
     let last = |v: Option<f64>| v.map_or((1, 0.0), |v| (0, v));
     match &query.sort {
@@ -498,19 +555,53 @@ pub async fn leaderboard(
         },
         rows,
         overlays,
+        curve_choices,
     })
 }
 
-/// The charts of a dataset's board: the curves of its [`OVERLAID`] best ranked entries, from
-/// their stored reports (`rows` in rank order).
+/// The methods a dataset's board offers for its curves: each ranked row, with the link that
+/// adds it to the drawn ones or takes it away (leaving none draws the best again).
+fn curve_choices(rows: &[BoardRow], drawn: &[&BoardRow], filter: &BoardFilter) -> Vec<CurveChoice> {
+    if filter.dataset.as_deref().is_none_or(str::is_empty) {
+        return Vec::new();
+    }
+    let ids: Vec<i64> = drawn.iter().map(|r| r.method_id).collect();
+    let link = |ids: Vec<i64>| {
+        let list: Vec<String> = ids.iter().map(i64::to_string).collect();
+        filter.with("curves", &list.join(","))
+    };
+    rows.iter()
+        .filter(|r| r.rank.is_some())
+        .map(|r| {
+            let on = ids.contains(&r.method_id);
+            let href = if on {
+                Some(link(
+                    ids.iter().copied().filter(|&i| i != r.method_id).collect(),
+                ))
+            } else if ids.len() < OVERLAID {
+                Some(link(ids.iter().copied().chain([r.method_id]).collect()))
+            } else {
+                None
+            };
+            CurveChoice {
+                method: r.method.clone(),
+                drawn: on,
+                href,
+            }
+        })
+        .collect()
+}
+
+/// The charts of a dataset's board: the curves of the entries of `rows` (in rank order), from
+/// their stored reports.
 async fn overlays(
     app: &App,
     protocol: ProtocolName,
     dataset: &str,
-    rows: &[BoardRow],
+    rows: &[&BoardRow],
 ) -> AppResult<Vec<Chart>> {
     let mut methods = Vec::new();
-    for row in rows.iter().filter(|r| r.rank.is_some()).take(OVERLAID) {
+    for row in rows {
         let Some(cell) = row.scores.get(dataset) else {
             continue;
         };

@@ -157,6 +157,51 @@ fn trust_over_time(kind: Db) {
             assert_eq!(f.matches("<polyline").count(), 2, "{protocol}: {f}");
             assert!(f.contains("alpha") && f.contains("gamma") && !f.contains("beta"));
         }
+        assert!(
+            page.contains("☑ alpha") && page.contains("☑ gamma"),
+            "{protocol}"
+        );
+
+        // A reader chooses the methods drawn: gamma alone, then alpha added back by its link.
+        let board = get_json(&format!(
+            "{base}/api/v1/leaderboards/{protocol}?dataset=synthA"
+        ));
+        let (alpha_id, gamma_id) = (
+            row(&board, "alpha")["method_id"].as_i64().expect("id"),
+            row(&board, "gamma")["method_id"].as_i64().expect("id"),
+        );
+        let page = client()
+            .get(format!(
+                "{base}/leaderboards/{protocol}?dataset=synthA&curves={gamma_id}"
+            ))
+            .send()
+            .and_then(|r| r.text())
+            .expect("page");
+        let figures: Vec<&str> = page.split("<figure class=\"overlay\">").skip(1).collect();
+        assert_eq!(figures.len(), charts, "{protocol}: charts of the chosen");
+        for f in figures {
+            let f = &f[..f.find("</figure>").expect("closed")];
+            assert_eq!(f.matches("<polyline").count(), 1, "{protocol}: {f}");
+            assert!(f.contains("gamma") && !f.contains("alpha"));
+        }
+        assert!(
+            page.contains("☑ gamma") && page.contains("☐ alpha"),
+            "{protocol}"
+        );
+        assert!(
+            page.contains(&format!("curves={gamma_id}%2C{alpha_id}#curves")),
+            "{protocol}: the link that adds alpha"
+        );
+        for bad in ["abc", "1,2,3,4,5,6"] {
+            let r = client()
+                .get(format!(
+                    "{base}/api/v1/leaderboards/{protocol}?dataset=synthA&curves={bad}"
+                ))
+                .send()
+                .expect("answer");
+            assert_eq!(r.status().as_u16(), 400, "curves={bad}");
+            assert!(r.text().expect("body").contains("curves"), "curves={bad}");
+        }
     }
     drop(server);
 

@@ -23,6 +23,7 @@ pub fn key(format: Format, protocol: BoardProtocol, q: &BoardFilter) -> BoardKey
             q.sort.clone(),
             q.training.clone(),
             q.modality.clone(),
+            q.curves.clone(),
         ],
     }
 }

@@ -153,8 +153,11 @@ async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<
                 ..BoardFilter::default()
             };
             let q = query(protocol, dataset);
+            let mut page = LeaderboardPage::of(app, protocol, &filter).await?;
+            // A snapshot is fixed: it draws the best entries' curves and offers no other.
+            page.board.curve_choices.clear();
             let page = SnapshotBoardPage {
-                page: LeaderboardPage::of(app, protocol, &filter).await?,
+                page,
                 id,
                 taken_at,
                 permalink: format!("/snapshots/{id}{q}"),
