@@ -206,15 +206,32 @@ pub fn start_with_env(
     extra: &[&str],
     env: &[(&str, &str)],
 ) -> Server {
+    launch(data_dir, Some(datasets), db, extra, env)
+}
+
+/// The server as a new operator first starts it: no datasets directory given, so it makes the
+/// demo dataset and submits the demo files, with every other setting at its default.
+pub fn start_first_time(data_dir: &Path, db: &TestDb) -> Server {
+    launch(data_dir, None, db, &[], &[])
+}
+
+fn launch(
+    data_dir: &Path,
+    datasets: Option<&Path>,
+    db: &TestDb,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> Server {
     let token = account(data_dir, db, "tester");
     let mut cmd = Command::new(BIN);
     cmd.envs(env.iter().copied());
     cmd.args(["serve", "--bind", "127.0.0.1:0", "--lease-secs", "2"])
         .arg("--data-dir")
-        .arg(data_dir)
-        .arg("--datasets")
-        .arg(datasets)
-        .args(extra)
+        .arg(data_dir);
+    if let Some(datasets) = datasets {
+        cmd.arg("--datasets").arg(datasets);
+    }
+    cmd.args(extra)
         // Request traces included, so tests can check that no secret ever reaches the log.
         .env("RUST_LOG", "info,tower_http=debug")
         .env_remove("DATABASE_URL")
