@@ -142,7 +142,7 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
             }
         )))
         .expect("utf-8");
-        let live = match live.find("<details class=\"curve-choice\">") {
+        let live = match live.find("<details class=\"curve-choice\"") {
             Some(at) if !dataset.is_empty() => {
                 let end = at + live[at..].find("</details>\n").expect("choice end");
                 // The block and the line break before it.

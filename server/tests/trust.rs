@@ -189,6 +189,10 @@ fn trust_over_time(kind: Db) {
             "{protocol}"
         );
         assert!(
+            page.contains("<details class=\"curve-choice\" open>"),
+            "the choice stays open"
+        );
+        assert!(
             page.contains(&format!("curves={gamma_id}%2C{alpha_id}#curves")),
             "{protocol}: the link that adds alpha"
         );
