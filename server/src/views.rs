@@ -253,12 +253,11 @@ fn curves(value: &str) -> AppResult<Option<Vec<i64>>> {
         if !ids.contains(&id) {
             ids.push(id);
         }
-    }
-    if ids.len() > OVERLAID {
-        return Err(AppError::BadRequest(format!(
-            "curves takes at most {OVERLAID} methods, not {}",
-            ids.len()
-        )));
+        if ids.len() > OVERLAID {
+            return Err(AppError::BadRequest(format!(
+                "curves takes at most {OVERLAID} methods"
+            )));
+        }
     }
     Ok(Some(ids))
 }
