@@ -11,19 +11,27 @@
     if (!button) return;
     const source = document.getElementById(button.dataset.copy);
     if (!source) return;
-    const label = button.textContent;
+    const label = button.dataset.label || button.textContent;
+    button.dataset.label = label;
+    // The text is selected at once, ready for Ctrl+C whatever the clipboard does, and the
+    // button answers before the clipboard does (which may never answer on some browsers).
+    const range = document.createRange();
+    range.selectNodeContents(source);
+    const selection = window.getSelection();
+    selection.removeAllRanges();
+    selection.addRange(range);
+    button.textContent = "Copying…";
+    let copied = false;
     try {
-      await navigator.clipboard.writeText(source.textContent);
-      button.textContent = "Copied";
+      await Promise.race([
+        navigator.clipboard.writeText(source.textContent),
+        new Promise(function (_, reject) { setTimeout(reject, 1000); }),
+      ]);
+      copied = true;
     } catch (err) {
-      // No clipboard access (an insecure origin): select the text for the reader to copy.
-      const range = document.createRange();
-      range.selectNodeContents(source);
-      const selection = window.getSelection();
-      selection.removeAllRanges();
-      selection.addRange(range);
-      button.textContent = "Selected: press Ctrl+C";
+      // No clipboard access (an insecure origin) or no answer: the selection stays.
     }
+    button.textContent = copied ? "Copied" : "Selected: press Ctrl+C";
     setTimeout(function () { button.textContent = label; }, 2000);
   });
 })();
