@@ -186,19 +186,32 @@ impl App {
 
     /// Loads and hashes the dataset in `folder` on the evaluation threads.
     async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, String>> {
-        let (tx, rx) = tokio::sync::oneshot::channel();
-        self.pool.spawn(move || {
-            let loaded = load(&folder).and_then(|ds| {
+        self.on_pool("loading a dataset", move || {
+            Ok(load(&folder).and_then(|ds| {
                 let content_hash = dataset_hash::content_hash(&ds)?;
                 Ok(Loaded {
                     dataset: Arc::new(ds),
                     content_hash,
                 })
-            });
-            let _ = tx.send(loaded);
+            }))
+        })
+        .await
+    }
+
+    /// Runs CPU work on the evaluation threads, never on the async ones; `what` names the
+    /// work in the error should it panic.
+    pub async fn on_pool<T: Send + 'static>(
+        &self,
+        what: &str,
+        work: impl FnOnce() -> AppResult<T> + Send + 'static,
+    ) -> AppResult<T> {
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        self.pool.spawn(move || {
+            // The requester may have gone away; then nobody needs the answer.
+            let _ = tx.send(work());
         });
         rx.await
-            .map_err(|_| AppError::Internal("loading a dataset crashed".into()))
+            .map_err(|_| AppError::Internal(format!("{what} crashed")))?
     }
 }
 

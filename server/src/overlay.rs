@@ -56,26 +56,21 @@ pub async fn target_png(
             let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), sha256)
                 .await
                 .map_err(|e| AppError::Internal(e.to_string()))?;
-            let (tx, rx) = tokio::sync::oneshot::channel();
-            app.pool.spawn(move || {
-                let _ = tx.send(results::parse_results(&bytes[..]).map_err(|p| {
+            app.on_pool("parsing the stored file", move || {
+                results::parse_results(&bytes[..]).map_err(|p| {
                     AppError::Internal(format!("the stored file no longer parses: {p}"))
-                }));
-            });
-            rx.await
-                .map_err(|_| AppError::Internal("parsing the stored file crashed".into()))?
+                })
+            })
+            .await
         })
         .await?;
-    let (tx, rx) = tokio::sync::oneshot::channel();
-    app.pool.spawn(move || {
+    app.on_pool("drawing the picture", move || {
         let n_top = Protocol::named(protocol).n_top;
         let picture = target_picture(&dataset, &results, &found, n_top)
-            .map_err(|e| AppError::Internal(e.to_string()))
-            .and_then(|picture| encode(&picture));
-        let _ = tx.send(picture);
-    });
-    rx.await
-        .map_err(|_| AppError::Internal("drawing the picture crashed".into()))?
+            .map_err(|e| AppError::Internal(e.to_string()))?;
+        encode(&picture)
+    })
+    .await
 }
 
 /// An 8-bit RGB PNG, compressed fast: it is drawn on request.

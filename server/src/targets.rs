@@ -150,19 +150,6 @@ async fn stored(app: &App, s: &SubmissionRow, protocol: ProtocolName) -> AppResu
         })
 }
 
-/// Runs CPU work on the evaluation threads, never on the async ones.
-async fn on_pool<T: Send + 'static>(
-    app: &App,
-    work: impl FnOnce() -> AppResult<T> + Send + 'static,
-) -> AppResult<T> {
-    let (tx, rx) = tokio::sync::oneshot::channel();
-    app.pool.spawn(move || {
-        let _ = tx.send(work());
-    });
-    rx.await
-        .map_err(|_| AppError::Internal("matching stored errors crashed".into()))?
-}
-
 async fn dataset_of(app: &App, s: &SubmissionRow) -> AppResult<Arc<Dataset>> {
     let row = app
         .store
@@ -492,12 +479,13 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
     let (ea, eb) = (stored(app, &sa, name).await?, stored(app, &sb, name).await?);
     let dataset = dataset_of(app, &sa).await?;
     let (c, p) = (criterion.clone(), protocol.clone());
-    let (oa, ob) = on_pool(app, move || {
-        let a = outcomes(&dataset, &p, &ea.estimates(&p)?, &c);
-        let b = outcomes(&dataset, &p, &eb.estimates(&p)?, &c);
-        Ok((a, b))
-    })
-    .await?;
+    let (oa, ob) = app
+        .on_pool("matching stored errors", move || {
+            let a = outcomes(&dataset, &p, &ea.estimates(&p)?, &c);
+            let b = outcomes(&dataset, &p, &eb.estimates(&p)?, &c);
+            Ok((a, b))
+        })
+        .await?;
     let (counts, targets) = pair(&oa, &ob, (ia, ib), &choice);
     Ok(Comparison {
         dataset: sa.dataset.clone(),
@@ -634,54 +622,55 @@ pub async fn target(
     }
     let job = stored(app, &s, name).await?;
     let p = protocol.clone();
-    let (estimates, verdicts) = on_pool(app, move || {
-        let all = job.estimates(&p)?;
-        let verdicts = criteria
-            .into_iter()
-            .map(|criterion| {
-                let outcomes = outcomes(&dataset, &p, &all, &criterion)
-                    .into_iter()
-                    .filter(|o| (o.scene_id, o.im_id, o.obj_id) == (scene_id, im_id, obj_id))
-                    .collect();
-                Verdicts {
-                    criterion,
-                    outcomes,
-                }
-            })
-            .collect();
-        let cols = columns(&p);
-        let mut mine: Vec<&EstimateErrors> = all
-            .iter()
-            .filter(|e| (e.scene_id, e.im_id, e.obj_id) == (scene_id, im_id, obj_id))
-            .collect();
-        mine.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.est_id.cmp(&b.est_id)));
-        let estimates = mine
-            .into_iter()
-            .map(|e| EstimateRow {
-                est_id: e.est_id,
-                score: e.score,
-                against: e
-                    .gt_ids
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &gt_id)| Against {
-                        gt_id,
-                        errors: cols
-                            .iter()
-                            .enumerate()
-                            .map(|(c, col)| {
-                                let kind = &p.errors[col.error].kind;
-                                Some(normalised_error(&dataset, kind, e, e.errors[c][i]))
-                                    .filter(|v| v.is_finite())
-                            })
-                            .collect(),
-                    })
-                    .collect(),
-            })
-            .collect();
-        Ok((estimates, verdicts))
-    })
-    .await?;
+    let (estimates, verdicts) = app
+        .on_pool("matching stored errors", move || {
+            let all = job.estimates(&p)?;
+            let verdicts = criteria
+                .into_iter()
+                .map(|criterion| {
+                    let outcomes = outcomes(&dataset, &p, &all, &criterion)
+                        .into_iter()
+                        .filter(|o| (o.scene_id, o.im_id, o.obj_id) == (scene_id, im_id, obj_id))
+                        .collect();
+                    Verdicts {
+                        criterion,
+                        outcomes,
+                    }
+                })
+                .collect();
+            let cols = columns(&p);
+            let mut mine: Vec<&EstimateErrors> = all
+                .iter()
+                .filter(|e| (e.scene_id, e.im_id, e.obj_id) == (scene_id, im_id, obj_id))
+                .collect();
+            mine.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.est_id.cmp(&b.est_id)));
+            let estimates = mine
+                .into_iter()
+                .map(|e| EstimateRow {
+                    est_id: e.est_id,
+                    score: e.score,
+                    against: e
+                        .gt_ids
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &gt_id)| Against {
+                            gt_id,
+                            errors: cols
+                                .iter()
+                                .enumerate()
+                                .map(|(c, col)| {
+                                    let kind = &p.errors[col.error].kind;
+                                    Some(normalised_error(&dataset, kind, e, e.errors[c][i]))
+                                        .filter(|v| v.is_finite())
+                                })
+                                .collect(),
+                        })
+                        .collect(),
+                })
+                .collect();
+            Ok((estimates, verdicts))
+        })
+        .await?;
     Ok(TargetView {
         submission: Named::of(&s),
         scene_id,
@@ -772,10 +761,11 @@ pub async fn gallery(app: &App, id: i64, choice: &Choice, viewer: &Viewer) -> Ap
     let dataset = dataset_of(app, &s).await?;
     let job = stored(app, &s, name).await?;
     let (p, c) = (protocol.clone(), criterion.clone());
-    let list = on_pool(app, move || {
-        Ok(outcomes(&dataset, &p, &job.estimates(&p)?, &c))
-    })
-    .await?;
+    let list = app
+        .on_pool("matching stored errors", move || {
+            Ok(outcomes(&dataset, &p, &job.estimates(&p)?, &c))
+        })
+        .await?;
     let mut per_obj: BTreeMap<u32, Vec<TargetOutcome>> = BTreeMap::new();
     for o in list {
         per_obj.entry(o.obj_id).or_default().push(o);

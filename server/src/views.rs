@@ -152,6 +152,11 @@ pub struct BoardFilter {
 }
 
 impl BoardFilter {
+    /// Whether the reader chose the methods the curves overlay.
+    pub fn curves_chosen(&self) -> bool {
+        self.curves.as_deref().is_some_and(|c| !c.is_empty())
+    }
+
     /// The query string of this filter as it stands (for the links to the board's exports).
     pub fn query(&self) -> String {
         self.with("", "")
@@ -509,7 +514,11 @@ pub async fn leaderboard(
         }
         (None, _) => Vec::new(),
     };
-    let curve_choices = curve_choices(&rows, &drawn, filter);
+    let curve_choices = if selected.is_some() {
+        curve_choices(&rows, &drawn, filter)
+    } else {
+        Vec::new()
+    };
     // Another order keeps each row's rank: `#` is always the score's.
     let last = |v: Option<f64>| v.map_or((1, 0.0), |v| (0, v));
     match &query.sort {
@@ -561,9 +570,6 @@ pub async fn leaderboard(
 /// The methods a dataset's board offers for its curves: each ranked row, with the link that
 /// adds it to the drawn ones or takes it away (leaving none draws the best again).
 fn curve_choices(rows: &[BoardRow], drawn: &[&BoardRow], filter: &BoardFilter) -> Vec<CurveChoice> {
-    if filter.dataset.as_deref().is_none_or(str::is_empty) {
-        return Vec::new();
-    }
     let ids: Vec<i64> = drawn.iter().map(|r| r.method_id).collect();
     let link = |ids: Vec<i64>| {
         let list: Vec<String> = ids.iter().map(i64::to_string).collect();

@@ -9,8 +9,8 @@ mod common;
 use std::time::Duration;
 
 use common::{
-    Db, Server, TestDb, admin_token, both_databases, client, execute, fixtures, get_as, post_as,
-    reference_datasets, start, upload, upload_with, wait_done,
+    Db, Server, TestDb, admin_token, board_methods, both_databases, client, execute, fixtures,
+    get_as, post_as, reference_datasets, start, upload, upload_with, wait_done,
 };
 use serde_json::Value;
 
@@ -25,19 +25,10 @@ fn html(server: &Server) -> String {
 
 /// The methods of the BOP'19 board's JSON, in rank order.
 fn methods(server: &Server) -> Vec<String> {
-    json_methods(&common::get_json(&format!(
+    board_methods(&common::get_json(&format!(
         "{}/api/v1/leaderboards/bop19",
         server.base
     )))
-}
-
-fn json_methods(board: &Value) -> Vec<String> {
-    board["rows"]
-        .as_array()
-        .expect("rows")
-        .iter()
-        .map(|r| r["method"].as_str().expect("method").to_string())
-        .collect()
 }
 
 fn id_of(r: reqwest::blocking::Response) -> i64 {
@@ -110,7 +101,7 @@ fn boards_follow_every_change(kind: Db) {
         .expect("answered")
         .json()
         .expect("json");
-    assert_eq!(json_methods(&owners_json), ["cached-alpha"]);
+    assert_eq!(board_methods(&owners_json), ["cached-alpha"]);
 
     // Served from memory: a change made behind the service's back (no board version bump) does
     // not show.

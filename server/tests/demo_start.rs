@@ -7,19 +7,9 @@ mod common;
 
 use std::time::Duration;
 
-use common::{Db, TestDb, both_databases, get_json, start_first_time, wait_done};
-use serde_json::Value;
+use common::{Db, TestDb, board_methods, both_databases, get_json, start_first_time, wait_done};
 
 const WAIT: Duration = Duration::from_secs(300);
-
-fn names(board: &Value) -> Vec<String> {
-    board["rows"]
-        .as_array()
-        .expect("rows")
-        .iter()
-        .map(|r| r["method"].as_str().expect("method").to_owned())
-        .collect()
-}
 
 fn first_start(kind: Db) {
     let dir = tempfile::tempdir().expect("tmp");
@@ -48,20 +38,20 @@ fn first_start(kind: Db) {
         v.sort();
         v
     };
-    let pose = sorted(names(&get_json(&format!(
+    let pose = sorted(board_methods(&get_json(&format!(
         "{base}/api/v1/leaderboards/bop19"
     ))));
     assert!(pose.len() >= 3, "{pose:?}");
     assert!(pose.iter().all(|n| n.starts_with("demo-")), "{pose:?}");
     assert_eq!(
         pose,
-        sorted(names(&get_json(&format!(
+        sorted(board_methods(&get_json(&format!(
             "{base}/api/v1/leaderboards/eccv18"
         )))),
         "the same methods under both 6D protocols"
     );
     for task in ["bop22-det", "bop22-seg"] {
-        let rows = names(&get_json(&format!("{base}/api/v1/leaderboards/{task}")));
+        let rows = board_methods(&get_json(&format!("{base}/api/v1/leaderboards/{task}")));
         assert_eq!(rows.len(), 1, "{task}: {rows:?}");
     }
     assert_eq!(

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use common::{
-    Db, Server, TestDb, account, admin_token, both_databases, cli_report, client, fixtures,
-    get_json, post_as, start, upload_with, wait_done,
+    Db, Server, TestDb, account, admin_token, board_methods, both_databases, cli_report, client,
+    fixtures, get_json, post_as, start, upload_with, wait_done,
 };
 use serde_json::{Value, json};
 
@@ -64,15 +64,6 @@ fn rows_by_method(board: &Value) -> BTreeMap<String, Value> {
         .expect("rows")
         .iter()
         .map(|r| (r["method"].as_str().expect("method").to_string(), r.clone()))
-        .collect()
-}
-
-fn order(board: &Value) -> Vec<String> {
-    board["rows"]
-        .as_array()
-        .expect("rows")
-        .iter()
-        .map(|r| r["method"].as_str().expect("method").to_string())
         .collect()
 }
 
@@ -183,7 +174,7 @@ fn ranking(kind: Db) {
         .collect();
     assert_eq!(columns, ["synthA", "synthB"], "{kind:?}: the core datasets");
     assert_eq!(
-        order(&board),
+        board_methods(&board),
         ["best-net", "tie-net", "third-net", "z-partial", "a-partial"],
         "{kind:?}: ranked by average, then unranked by mean"
     );
@@ -242,7 +233,7 @@ fn ranking(kind: Db) {
     // Another order keeps each row's rank; the page shows the direction and `-` for unranked.
     let by_name = get_json(&format!("{base}/api/v1/leaderboards/bop19?sort=method"));
     assert_eq!(
-        order(&by_name),
+        board_methods(&by_name),
         ["a-partial", "best-net", "third-net", "tie-net", "z-partial"]
     );
     for (m, row) in rows_by_method(&by_name) {
@@ -263,10 +254,10 @@ fn ranking(kind: Db) {
 
     // A dataset's own board ranks by its score, non-core ones included.
     let a = get_json(&format!("{base}/api/v1/leaderboards/bop19?dataset=synthA"));
-    assert_eq!(order(&a)[0], "z-partial", "{kind:?}");
+    assert_eq!(board_methods(&a)[0], "z-partial", "{kind:?}");
     assert_eq!(a["rows"][0]["rank"], 1);
     let c = get_json(&format!("{base}/api/v1/leaderboards/bop19?dataset=synthC"));
-    assert_eq!(order(&c), ["z-partial"], "{kind:?}");
+    assert_eq!(board_methods(&c), ["z-partial"], "{kind:?}");
 
     // The owner pins the worse submission: it is the entry, and the submission says so.
     let pin = |token: &str, id: i64, action: &str| {
@@ -359,7 +350,7 @@ fn ranking(kind: Db) {
         "{base}/api/v1/leaderboards/bop19?training=synthetic"
     ));
     assert_eq!(
-        order(&board),
+        board_methods(&board),
         ["best-net"],
         "{kind:?}: the boards show the edit"
     );
@@ -386,7 +377,7 @@ fn ranking(kind: Db) {
             .all(|r| r["rank"].is_null())
     );
     assert_eq!(
-        order(&board)[0],
+        board_methods(&board)[0],
         "z-partial",
         "{kind:?}: covers two of three"
     );

@@ -15,12 +15,10 @@ use std::time::{Duration, Instant};
 
 /// The methods on the BOP'19 board's JSON (served from the board cache).
 fn on_board(server: &Server) -> Vec<String> {
-    common::get_json(&format!("{}/api/v1/leaderboards/bop19", server.base))["rows"]
-        .as_array()
-        .expect("rows")
-        .iter()
-        .map(|r| r["method"].as_str().expect("method").to_string())
-        .collect()
+    common::board_methods(&common::get_json(&format!(
+        "{}/api/v1/leaderboards/bop19",
+        server.base
+    )))
 }
 
 /// Waits until the owner sees the submission evaluated.

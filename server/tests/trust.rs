@@ -27,6 +27,23 @@ fn ci(v: &Value) -> Option<(f64, f64)> {
     Some((c[0].as_f64()?, c[1].as_f64()?))
 }
 
+/// The text of a page.
+fn fetch_page(url: &str) -> String {
+    client()
+        .get(url)
+        .send()
+        .and_then(|r| r.text())
+        .expect("page")
+}
+
+/// The overlaid charts of a board page, each up to its closing tag.
+fn overlay_figures(page: &str) -> Vec<&str> {
+    page.split("<figure class=\"overlay\">")
+        .skip(1)
+        .map(|f| &f[..f.find("</figure>").expect("closed")])
+        .collect()
+}
+
 fn row<'a>(board: &'a Value, method: &str) -> &'a Value {
     board["rows"]
         .as_array()
@@ -136,24 +153,15 @@ fn trust_over_time(kind: Db) {
     )
     .clone();
     let alpha_score = alpha["scores"]["synthA"]["score"].as_f64().expect("score");
-    let page = client()
-        .get(format!("{base}/leaderboards/bop19"))
-        .send()
-        .and_then(|r| r.text())
-        .expect("page");
+    let page = fetch_page(&format!("{base}/leaderboards/bop19"));
     assert!(page.contains("title=\"95 % bootstrap interval: "), "hover");
 
     // A dataset's board overlays its ranked entries' curves: one line per method per chart.
     for (protocol, charts) in [("bop19", 3), ("eccv18", 1)] {
-        let page = client()
-            .get(format!("{base}/leaderboards/{protocol}?dataset=synthA"))
-            .send()
-            .and_then(|r| r.text())
-            .expect("page");
-        let figures: Vec<&str> = page.split("<figure class=\"overlay\">").skip(1).collect();
+        let page = fetch_page(&format!("{base}/leaderboards/{protocol}?dataset=synthA"));
+        let figures = overlay_figures(&page);
         assert_eq!(figures.len(), charts, "{protocol}: charts");
         for f in figures {
-            let f = &f[..f.find("</figure>").expect("closed")];
             assert_eq!(f.matches("<polyline").count(), 2, "{protocol}: {f}");
             assert!(f.contains("alpha") && f.contains("gamma") && !f.contains("beta"));
         }
@@ -170,17 +178,12 @@ fn trust_over_time(kind: Db) {
             row(&board, "alpha")["method_id"].as_i64().expect("id"),
             row(&board, "gamma")["method_id"].as_i64().expect("id"),
         );
-        let page = client()
-            .get(format!(
-                "{base}/leaderboards/{protocol}?dataset=synthA&curves={gamma_id}"
-            ))
-            .send()
-            .and_then(|r| r.text())
-            .expect("page");
-        let figures: Vec<&str> = page.split("<figure class=\"overlay\">").skip(1).collect();
+        let page = fetch_page(&format!(
+            "{base}/leaderboards/{protocol}?dataset=synthA&curves={gamma_id}"
+        ));
+        let figures = overlay_figures(&page);
         assert_eq!(figures.len(), charts, "{protocol}: charts of the chosen");
         for f in figures {
-            let f = &f[..f.find("</figure>").expect("closed")];
             assert_eq!(f.matches("<polyline").count(), 1, "{protocol}: {f}");
             assert!(f.contains("gamma") && !f.contains("alpha"));
         }
@@ -286,11 +289,7 @@ fn trust_over_time(kind: Db) {
         .json()
         .expect("json");
     assert_eq!(theirs["changes"], public["changes"], "hidden from others");
-    let page = client()
-        .get(format!("{base}/rescoring"))
-        .send()
-        .and_then(|r| r.text())
-        .expect("page");
+    let page = fetch_page(&format!("{base}/rescoring"));
     assert!(page.contains("0.010000") && page.contains("0.0.0") && !page.contains("0.020000"));
 }
 both_databases!(trust_over_time);

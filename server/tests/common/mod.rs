@@ -360,6 +360,16 @@ pub fn get_json(url: &str) -> Value {
     r.json().expect("JSON")
 }
 
+/// The methods of a leaderboard's JSON rows, in their order.
+pub fn board_methods(board: &Value) -> Vec<String> {
+    board["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .map(|r| r["method"].as_str().expect("method").to_string())
+        .collect()
+}
+
 /// Polls submission `id` until it is done (panicking if it fails or takes over `limit`).
 pub fn wait_done(base: &str, id: i64, limit: Duration) -> Value {
     let start = Instant::now();
@@ -380,20 +390,12 @@ pub fn wait_done(base: &str, id: i64, limit: Duration) -> Value {
 
 /// What `poseboard eval` reports for a file.
 pub fn cli_report(dataset: &Path, results: &Path, protocol: &str) -> Value {
-    let out = tempfile::NamedTempFile::new().expect("tmp");
-    let status = Command::new(BIN)
-        .args(["eval", "--protocol", protocol, "--threads", "1"])
-        .arg("--dataset")
-        .arg(dataset)
-        .arg("--results")
-        .arg(results)
-        .arg("--out")
-        .arg(out.path())
-        .stdout(Stdio::null())
-        .status()
-        .expect("poseboard eval runs");
-    assert!(status.success());
-    serde_json::from_str(&std::fs::read_to_string(out.path()).expect("report")).expect("json")
+    eval_report(
+        dataset,
+        results,
+        &["--protocol", protocol, "--threads", "1"],
+    )
+    .1
 }
 
 /// `poseboard` run with `args`, as a user runs it.
