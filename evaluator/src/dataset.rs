@@ -13,9 +13,11 @@ use serde::de::DeserializeOwned;
 use crate::depth_files::depth_size;
 pub use crate::depth_files::{DepthFile, DepthFormat, DepthImage, DepthRows};
 use crate::error::{Error, Result};
+use crate::fisheye::{Fisheye624, RawCamModel};
 use crate::math::{Intrinsics, Pose};
 use crate::mesh::Mesh;
 use crate::ply::read_ply;
+use crate::sensors::{EvalSensor, eval_sensor, vsd_unsupported};
 
 /// The BOP datasets by the names BOP uses for their folders and result files, with the names
 /// the BOP site and papers show.
@@ -91,7 +93,11 @@ pub struct GtInstance {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
     pub id: u32,
+    /// The pinhole camera (`cam_K`), or for a fisheye camera its pinhole part (see
+    /// [`Fisheye624::pinhole_part`]).
     pub camera: Intrinsics,
+    /// HOT3D's fisheye camera (`cam_model`), which MSPD projects with when present.
+    pub fisheye: Option<Fisheye624>,
     /// Multiplier from depth PNG values to millimetres.
     pub depth_scale: f64,
     pub gt: Vec<GtInstance>,
@@ -100,6 +106,8 @@ pub struct Image {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
     pub id: u32,
+    /// The sensor whose files were read (BOP-Industrial, HOT3D); `None` for the classic layout.
+    pub sensor: Option<EvalSensor>,
     pub images: BTreeMap<u32, Image>,
 }
 
@@ -182,10 +190,23 @@ impl Dataset {
         let models_info_path = models_info_path(root, &models_dir);
         let infos = load_models_info(&models_info_path)?;
 
+        let name = root
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .or_else(|| {
+                let canonical = root.canonicalize().ok()?;
+                Some(canonical.file_name()?.to_string_lossy().into_owned())
+            })
+            .unwrap_or_default();
+
         let scene_ids: BTreeSet<u32> = targets.iter().map(|t| t.scene_id).collect();
         let scenes = scene_ids
             .into_iter()
-            .map(|id| Ok((id, load_scene(&split_dir, id)?)))
+            .map(|id| {
+                let sensor = eval_sensor(&name, split_type.as_deref(), id)
+                    .map_err(|m| Error::format(scene_dir(&split_dir, id), m))?;
+                Ok((id, load_scene(&split_dir, id, sensor)?))
+            })
             .collect::<Result<BTreeMap<u32, Scene>>>()?;
 
         // Checked before the meshes are read: a wrong target is cheaper to report than a
@@ -212,7 +233,7 @@ impl Dataset {
                         "{which}: image {} is not in {}",
                         t.im_id,
                         scene_dir(&split_dir, t.scene_id)
-                            .join("scene_gt.json")
+                            .join(suffixed("scene_gt", scenes[&t.scene_id].sensor))
                             .display()
                     ),
                 ));
@@ -227,18 +248,10 @@ impl Dataset {
             })
             .collect::<Result<BTreeMap<u32, Object>>>()?;
 
-        let name = root
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .or_else(|| {
-                let canonical = root.canonicalize().ok()?;
-                Some(canonical.file_name()?.to_string_lossy().into_owned())
-            })
-            .unwrap_or_default();
-
         let first = targets[0];
         let depth_format = DepthFormat::find(
-            &scene_dir(&split_dir, first.scene_id).join("depth"),
+            &scene_dir(&split_dir, first.scene_id)
+                .join(depth_dir_name(scenes[&first.scene_id].sensor)),
             &format!("{:06}", first.im_id),
         );
         let mut dataset = Dataset {
@@ -282,21 +295,25 @@ impl Dataset {
         }
         cameras.sort();
         files.extend(cameras);
-        for &scene_id in self.scenes.keys() {
+        for (&scene_id, scene) in &self.scenes {
             let dir = scene_dir(&self.split_dir, scene_id);
-            for name in ["scene_camera.json", "scene_gt.json", "scene_gt_info.json"] {
-                files.push(dir.join(name));
+            for name in ["scene_camera", "scene_gt", "scene_gt_info"] {
+                files.push(dir.join(suffixed(name, scene.sensor)));
             }
         }
-        let images: BTreeSet<(u32, u32)> =
-            self.targets.iter().map(|t| (t.scene_id, t.im_id)).collect();
-        files.extend(images.into_iter().map(|(s, i)| self.depth_path(s, i)));
+        // Depth decides only VSD: where the toolkit computes none, the images change no score.
+        if vsd_unsupported(&self.name).is_none() {
+            let images: BTreeSet<(u32, u32)> =
+                self.targets.iter().map(|t| (t.scene_id, t.im_id)).collect();
+            files.extend(images.into_iter().map(|(s, i)| self.depth_path(s, i)));
+        }
         Ok(files)
     }
 
     pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
+        let sensor = self.scenes.get(&scene_id).and_then(|s| s.sensor);
         scene_dir(&self.split_dir, scene_id)
-            .join("depth")
+            .join(depth_dir_name(sensor))
             .join(format!("{im_id:06}.{}", self.depth_format.extension()))
     }
 
@@ -338,6 +355,11 @@ impl Dataset {
         if let Some(t) = &self.split_type {
             candidates.push(self.root.join(format!("camera_{t}.json")));
         }
+        let first = self.targets[0];
+        let sensor = self.scenes[&first.scene_id].sensor;
+        if let Some(s) = sensor {
+            candidates.push(self.root.join(format!("camera_{}.json", s.suffix)));
+        }
         candidates.push(self.root.join("camera.json"));
         candidates.retain(|p| p.is_file());
         let entries = std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))?;
@@ -364,7 +386,10 @@ impl Dataset {
                 return Ok((w, h));
             }
         }
-        let first = self.targets[0];
+        // HOT3D has neither camera files nor depth: its sensors' published size.
+        if let Some(s) = sensor {
+            return Ok(s.size);
+        }
         depth_size(
             &self.depth_path(first.scene_id, first.im_id),
             self.depth_format,
@@ -472,6 +497,22 @@ pub(crate) fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
     split_dir.join(format!("{scene_id:06}"))
 }
 
+/// `{stem}.json`, or `{stem}_{sensor}.json` for a scene evaluated on a sensor.
+fn suffixed(stem: &str, sensor: Option<EvalSensor>) -> String {
+    match sensor {
+        Some(s) => format!("{stem}_{}.json", s.suffix),
+        None => format!("{stem}.json"),
+    }
+}
+
+/// `depth`, or `depth_{sensor}` for a scene evaluated on a sensor.
+fn depth_dir_name(sensor: Option<EvalSensor>) -> String {
+    match sensor {
+        Some(s) => format!("depth_{}", s.suffix),
+        None => "depth".to_string(),
+    }
+}
+
 #[derive(Deserialize)]
 struct RawTarget {
     scene_id: u32,
@@ -498,7 +539,8 @@ struct RawContinuousSymmetry {
 #[derive(Deserialize)]
 struct RawCamera {
     #[serde(rename = "cam_K")]
-    cam_k: Vec<f64>,
+    cam_k: Option<Vec<f64>>,
+    cam_model: Option<RawCamModel>,
     depth_scale: Option<f64>,
 }
 
@@ -609,11 +651,14 @@ fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
 
 /// Images are those of scene_gt.json; scene_camera.json and scene_gt_info.json must
 /// describe each of them, instance for instance, since GT ids are list positions.
-fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
+fn load_scene(split_dir: &Path, scene_id: u32, sensor: Option<EvalSensor>) -> Result<Scene> {
     let dir = scene_dir(split_dir, scene_id);
-    let camera_path = dir.join("scene_camera.json");
-    let gt_path = dir.join("scene_gt.json");
-    let info_path = dir.join("scene_gt_info.json");
+    let camera_path = dir.join(suffixed("scene_camera", sensor));
+    let gt_path = dir.join(suffixed("scene_gt", sensor));
+    let info_path = dir.join(suffixed("scene_gt_info", sensor));
+    if sensor.is_none() && !gt_path.exists() {
+        explain_sensor_files(&dir, &gt_path)?;
+    }
     let cameras = read_id_map::<RawCamera>(&camera_path, "an image")?;
     let gts = read_id_map::<Vec<RawGt>>(&gt_path, "an image")?;
     let infos = read_id_map::<Vec<RawGtInfo>>(&info_path, "an image")?;
@@ -623,7 +668,10 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
         let missing = |path: &Path| {
             Error::format(
                 path,
-                format!("image \"{im_id}\" is missing (it is listed in scene_gt.json)"),
+                format!(
+                    "image \"{im_id}\" is missing (it is listed in {})",
+                    suffixed("scene_gt", sensor)
+                ),
             )
         };
         let camera = cameras.get(&im_id).ok_or_else(|| missing(&camera_path))?;
@@ -632,18 +680,14 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
             return Err(Error::format(
                 &info_path,
                 format!(
-                    "image \"{im_id}\": {} instances, but scene_gt.json has {}",
+                    "image \"{im_id}\": {} instances, but {} has {}",
                     info.len(),
+                    suffixed("scene_gt", sensor),
                     gt.len()
                 ),
             ));
         }
-        let k = fixed(
-            &camera.cam_k,
-            &camera_path,
-            format_args!("image \"{im_id}\""),
-            "cam_K",
-        )?;
+        let (camera_k, fisheye) = read_camera(camera, &camera_path, im_id)?;
         let gt = gt
             .iter()
             .zip(info)
@@ -661,7 +705,8 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
             .collect::<Result<Vec<_>>>()?;
         let image = Image {
             id: im_id,
-            camera: Intrinsics::from_row_major(&k),
+            camera: camera_k,
+            fisheye,
             depth_scale: camera.depth_scale.unwrap_or(1.0),
             gt,
         };
@@ -669,8 +714,63 @@ fn load_scene(split_dir: &Path, scene_id: u32) -> Result<Scene> {
     }
     Ok(Scene {
         id: scene_id,
+        sensor,
         images,
     })
+}
+
+/// A pinhole camera from `cam_K`, or a fisheye one from `cam_model` (HOT3D); bop_toolkit
+/// refuses a camera with both, and so does this.
+fn read_camera(
+    camera: &RawCamera,
+    path: &Path,
+    im_id: u32,
+) -> Result<(Intrinsics, Option<Fisheye624>)> {
+    let place = format!("image \"{im_id}\"");
+    match (&camera.cam_k, &camera.cam_model) {
+        (Some(k), None) => Ok((
+            Intrinsics::from_row_major(&fixed(k, path, &place, "cam_K")?),
+            None,
+        )),
+        (None, Some(model)) => {
+            let fisheye = Fisheye624::from_cam_model(model)
+                .map_err(|m| Error::format(path, format!("{place}: field cam_model: {m}")))?;
+            Ok((fisheye.pinhole_part(), Some(fisheye)))
+        }
+        (Some(_), Some(_)) => Err(Error::format(
+            path,
+            format!("{place}: both cam_K and cam_model: expected one of them"),
+        )),
+        (None, None) => Err(Error::format(
+            path,
+            format!("{place}: missing field `cam_K` (or `cam_model` for a fisheye camera)"),
+        )),
+    }
+}
+
+/// A scene without `scene_gt.json` that holds per-sensor files belongs to a dataset recorded
+/// with several sensors, whose evaluated sensor is known by the dataset's name only.
+fn explain_sensor_files(dir: &Path, gt_path: &Path) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    let mut suffixed: Vec<String> = entries
+        .filter_map(|e| Some(e.ok()?.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.starts_with("scene_gt_") && n.ends_with(".json") && !n.contains("info"))
+        .collect();
+    if suffixed.is_empty() {
+        return Ok(());
+    }
+    suffixed.sort();
+    Err(Error::format(
+        gt_path,
+        format!(
+            "no such file, but the scene holds per-sensor annotations ({}): a dataset recorded \
+             with several sensors is read by its BOP name (ipd, xyzibd, itoddmv, hot3d), which \
+             decides the sensor evaluated; name the folder so",
+            suffixed.join(", ")
+        ),
+    ))
 }
 
 #[cfg(test)]

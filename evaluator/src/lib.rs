@@ -13,6 +13,7 @@ pub mod dataset;
 pub mod depth_files;
 mod depth_png;
 pub mod error;
+pub mod fisheye;
 pub mod matching;
 pub mod math;
 pub mod mesh;
@@ -27,6 +28,7 @@ pub mod report;
 pub mod results;
 pub mod score;
 pub mod selection;
+pub mod sensors;
 pub mod stats;
 pub mod visibility;
 

@@ -152,6 +152,7 @@ mod tests {
         Image {
             id: 0,
             camera: Intrinsics::from_row_major(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+            fisheye: None,
             depth_scale: 1.0,
             gt: visib
                 .iter()

@@ -111,6 +111,7 @@ pub fn evaluate(
     cancel: &AtomicBool,
 ) -> Result<Evaluation> {
     protocol.validate().map_err(Error::Parameters)?;
+    dataset.check_errors(protocol)?;
     let columns = columns(protocol);
     let selection = select_estimates(dataset, results, protocol.n_top);
     progress.start(selection.evaluated as u64);
@@ -402,14 +403,26 @@ impl Context<'_> {
                                     };
                             }
                             ErrorKind::Mspd => {
-                                errors[c][gi] = pose_error::mspd(
-                                    &est.pose,
-                                    &gt.pose,
-                                    &image.camera,
-                                    &object.mesh.vertices,
-                                    &self.objects.symmetries[obj_id],
-                                    &mut px_scratch,
-                                );
+                                let (pts, syms) =
+                                    (&object.mesh.vertices, &self.objects.symmetries[obj_id]);
+                                errors[c][gi] = match &image.fisheye {
+                                    Some(cam) => pose_error::mspd_fisheye(
+                                        &est.pose,
+                                        &gt.pose,
+                                        cam,
+                                        pts,
+                                        syms,
+                                        &mut px_scratch,
+                                    ),
+                                    None => pose_error::mspd(
+                                        &est.pose,
+                                        &gt.pose,
+                                        &image.camera,
+                                        pts,
+                                        syms,
+                                        &mut px_scratch,
+                                    ),
+                                };
                             }
                             kind @ (ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad) => {
                                 errors[c][gi] =

@@ -8,7 +8,7 @@ pub mod symmetry;
 pub mod vsd;
 
 pub use add::{add, adi, re, te};
-pub use mspd::mspd;
+pub use mspd::{mspd, mspd_fisheye};
 pub use mssd::mssd;
 pub use symmetry::symmetry_transformations;
 

@@ -288,11 +288,12 @@ pub fn columns(protocol: &Protocol) -> Vec<Column> {
 }
 
 /// The error compared with thresholds: VSD as is, MSSD, ADD, ADI and AD as a fraction of the
-/// object's diameter, MSPD in pixels at 640 px image width.
+/// object's diameter, MSPD in pixels at 640 px image width (the width of the scene's sensor
+/// where a dataset has several, as bop_toolkit's `eval_calc_scores.py`).
 pub fn normalised_error(dataset: &Dataset, kind: &ErrorKind, e: &EstimateErrors, raw: f64) -> f64 {
     match kind {
         ErrorKind::Vsd(_) => raw,
-        ErrorKind::Mspd => 640.0 / dataset.image_size.0 as f64 * raw,
+        ErrorKind::Mspd => 640.0 / dataset.image_width(e.scene_id) as f64 * raw,
         ErrorKind::Mssd | ErrorKind::Add | ErrorKind::Adi | ErrorKind::Ad => {
             raw / dataset.objects[&e.obj_id].info.diameter
         }

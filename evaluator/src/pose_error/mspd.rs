@@ -2,6 +2,7 @@
 //! a projected model point, minimised over the object's symmetries. Suited to RGB-only methods,
 //! which cannot see errors along the optical axis.
 
+use crate::fisheye::Fisheye624;
 use crate::math::{Intrinsics, Mat3, Pose, Pt3, Vec3};
 
 /// `min over s of max over x of |proj(P_est x) - proj(P_gt s x)|` in pixels, projecting with
@@ -23,6 +24,29 @@ pub fn mspd(
         |sym| projection(k, &gt.compose(sym)),
         |(r, t), i| {
             let (e, g) = (scratch[i], project(r, t, &pts[i]));
+            (e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)
+        },
+    )
+}
+
+/// MSPD for a fisheye camera (HOT3D), as bop_toolkit's `pose_error_htt.mspd`: the points are
+/// moved by each pose, then projected with the camera model.
+pub fn mspd_fisheye(
+    est: &Pose,
+    gt: &Pose,
+    cam: &Fisheye624,
+    pts: &[Pt3],
+    syms: &[Pose],
+    scratch: &mut Vec<[f64; 2]>,
+) -> f64 {
+    scratch.clear();
+    scratch.extend(pts.iter().map(|p| cam.project(&est.transform(p))));
+    super::min_over_symmetries(
+        syms,
+        pts.len(),
+        |sym| gt.compose(sym),
+        |pose, i| {
+            let (e, g) = (scratch[i], cam.project(&pose.transform(&pts[i])));
             (e[0] - g[0]).powi(2) + (e[1] - g[1]).powi(2)
         },
     )
