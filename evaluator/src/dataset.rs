@@ -756,7 +756,12 @@ fn explain_sensor_files(dir: &Path, gt_path: &Path) -> Result<()> {
     };
     let mut suffixed: Vec<String> = entries
         .filter_map(|e| Some(e.ok()?.file_name().to_string_lossy().into_owned()))
-        .filter(|n| n.starts_with("scene_gt_") && n.ends_with(".json") && !n.contains("info"))
+        .filter(|n| {
+            n.starts_with("scene_gt_")
+                && n.ends_with(".json")
+                && !n.starts_with("scene_gt_info")
+                && !n.starts_with("scene_gt_coco")
+        })
         .collect();
     if suffixed.is_empty() {
         return Ok(());

@@ -25,7 +25,10 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 pub use coco::write_demo_coco_results;
-pub use layouts::{CORE_LAYOUTS, CoreLayout, write_core_miniature};
+pub use layouts::{
+    CHALLENGE_LAYOUTS, CORE_LAYOUTS, ChallengeLayout, CoreLayout, write_challenge_miniature,
+    write_core_miniature,
+};
 pub use submissions::{DemoResult, write_demo_results};
 
 /// The name of the demo dataset, which is also its folder name.

@@ -8,8 +8,8 @@ use crate::accounts;
 use crate::app::{App, Role};
 use crate::config::{Config, ServeConfig};
 use crate::demo::{
-    CORE_LAYOUTS, SynthOptions, write_core_miniature, write_dataset, write_demo_coco_results,
-    write_demo_results,
+    CHALLENGE_LAYOUTS, CORE_LAYOUTS, SynthOptions, write_challenge_miniature, write_core_miniature,
+    write_dataset, write_demo_coco_results, write_demo_results,
 };
 use crate::domain::{Password, TokenLabel, UserName};
 use crate::routes::deadlines::Deadlines;
@@ -47,9 +47,11 @@ pub enum DatasetCommand {
         scenes: u32,
         #[arg(long, default_value_t = SynthOptions::default().images_per_scene)]
         images_per_scene: u32,
-        /// Lay it out as this core BOP dataset is published (lmo, tless, tudl, icbin, itodd,
-        /// hb, ycbv: split folder, camera file, depth scale, gray images, image size and
-        /// file formats) instead of plainly.
+        /// Lay it out as this BOP dataset is published instead of plainly: a core dataset
+        /// (lmo, tless, tudl, icbin, itodd, hb, ycbv: split folder, camera file, depth scale,
+        /// gray images, image size and file formats) or one the challenge added in 2024
+        /// (hopev2, handal, ipd, xyzibd, itoddmv, hot3d: per-sensor files, fisheye cameras,
+        /// JPEG images).
         #[arg(long, conflicts_with = "size")]
         layout: Option<String>,
         /// Image size WIDTHxHEIGHT of a plain dataset (the intrinsics scale with it), e.g. to
@@ -183,15 +185,21 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             match layout {
                 None => write_dataset(&dir, &opts)?,
                 Some(name) => {
-                    let Some(layout) = CORE_LAYOUTS.iter().find(|l| l.name == name) else {
-                        let names: Vec<&str> = CORE_LAYOUTS.iter().map(|l| l.name).collect();
-                        anyhow::bail!(
-                            "no core layout `{name}`: expected one of {}",
-                            names.join(", ")
-                        );
+                    let (w, h) = if let Some(layout) = CORE_LAYOUTS.iter().find(|l| l.name == name)
+                    {
+                        write_core_miniature(&dir, layout, &opts)?;
+                        layout.published_size
+                    } else if let Some(layout) = CHALLENGE_LAYOUTS.iter().find(|l| l.name == name) {
+                        write_challenge_miniature(&dir, layout, &opts)?;
+                        layout.published_size
+                    } else {
+                        let names: Vec<&str> = CORE_LAYOUTS
+                            .iter()
+                            .map(|l| l.name)
+                            .chain(CHALLENGE_LAYOUTS.iter().map(|l| l.name))
+                            .collect();
+                        anyhow::bail!("no layout `{name}`: expected one of {}", names.join(", "));
                     };
-                    write_core_miniature(&dir, layout, &opts)?;
-                    let (w, h) = layout.published_size;
                     println!("laid out as {name} is published, {w} x {h}");
                 }
             }

@@ -9,7 +9,11 @@
 //! and only the layout may differ. Sizes and formats are those of bop_toolkit's
 //! `dataset_params.py` for the test split (of the default split type).
 
+mod challenge;
+
 use std::path::Path;
+
+pub use challenge::{CHALLENGE_LAYOUTS, ChallengeLayout, write_challenge_miniature};
 
 use anyhow::{Context, Result, bail};
 
@@ -149,12 +153,8 @@ pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions
             if layout.gray {
                 let gray_dir = scene.join("gray");
                 std::fs::create_dir_all(&gray_dir)?;
-                to_gray(
-                    &scene.join("rgb").join(&name),
-                    &gray_dir,
-                    *im_id,
-                    layout.tiff,
-                )?;
+                let (size, gray) = to_gray(&scene.join("rgb").join(&name))?;
+                write_gray(&gray_dir, *im_id, size, &gray, layout.tiff)?;
             }
         }
         if layout.gray {
@@ -195,9 +195,8 @@ fn rescale_depth(path: &Path, factor: f64, tiff: bool) -> Result<()> {
     }
 }
 
-/// Writes the luma (ITU-R BT.601) of an 8-bit RGB PNG as the 8-bit grayscale image `im_id` of
-/// `gray_dir`, PNG or TIFF.
-fn to_gray(rgb_path: &Path, gray_dir: &Path, im_id: u32, tiff: bool) -> Result<()> {
+/// The luma (ITU-R BT.601) of an 8-bit RGB PNG, with the image size.
+fn to_gray(rgb_path: &Path) -> Result<((u32, u32), Vec<u8>)> {
     let (size, rgb) = read_png(rgb_path)?;
     let gray: Vec<u8> = rgb
         .chunks_exact(3)
@@ -206,10 +205,21 @@ fn to_gray(rgb_path: &Path, gray_dir: &Path, im_id: u32, tiff: bool) -> Result<(
                 as u8
         })
         .collect();
+    Ok((size, gray))
+}
+
+/// Writes an 8-bit grayscale image as the image `im_id` of `gray_dir`, PNG or TIFF.
+fn write_gray(
+    gray_dir: &Path,
+    im_id: u32,
+    size: (u32, u32),
+    gray: &[u8],
+    tiff: bool,
+) -> Result<()> {
     if tiff {
-        write_gray_tiff(&gray_dir.join(format!("{im_id:06}.tif")), size, &gray)
+        write_gray_tiff(&gray_dir.join(format!("{im_id:06}.tif")), size, gray)
     } else {
-        write_gray_png(&gray_dir.join(format!("{im_id:06}.png")), size, &gray)
+        write_gray_png(&gray_dir.join(format!("{im_id:06}.png")), size, gray)
     }
 }
 
