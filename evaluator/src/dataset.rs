@@ -310,6 +310,14 @@ impl Dataset {
         Ok(files)
     }
 
+    /// The image width MSPD is normalised by in a scene: its sensor's, else the dataset's.
+    pub fn image_width(&self, scene_id: u32) -> u32 {
+        self.scenes
+            .get(&scene_id)
+            .and_then(|s| s.sensor)
+            .map_or(self.image_size.0, |s| s.size.0)
+    }
+
     pub fn depth_path(&self, scene_id: u32, im_id: u32) -> PathBuf {
         let sensor = self.scenes.get(&scene_id).and_then(|s| s.sensor);
         scene_dir(&self.split_dir, scene_id)
@@ -1305,6 +1313,131 @@ mod tests {
             msg.contains(
                 "test_targets_bop19.json: no such file: expected the list of test targets"
             ),
+            "{msg}"
+        );
+    }
+
+    /// The reference dataset as IPD lays out its scenes: the evaluated sensor's files
+    /// (`_photoneo`) beside another sensor's (`_cam1`, with other intrinsics), which must not
+    /// be read.
+    fn as_ipd() -> (tempfile::TempDir, PathBuf) {
+        let dir = copy();
+        let root = dir.path().join("ipd");
+        std::fs::rename(dir.path().join("synthA"), &root).unwrap();
+        std::fs::rename(root.join("camera.json"), root.join("camera_photoneo.json")).unwrap();
+        for scene in ["000001", "000002"] {
+            let s = root.join("test").join(scene);
+            for stem in ["scene_gt", "scene_camera", "scene_gt_info"] {
+                let plain = s.join(format!("{stem}.json"));
+                std::fs::copy(&plain, s.join(format!("{stem}_cam1.json"))).unwrap();
+                std::fs::rename(&plain, s.join(format!("{stem}_photoneo.json"))).unwrap();
+            }
+            std::fs::rename(s.join("depth"), s.join("depth_photoneo")).unwrap();
+            edit_json(&s.join("scene_camera_cam1.json"), |v| {
+                for camera in v.as_object_mut().unwrap().values_mut() {
+                    camera["cam_K"][0] = serde_json::json!(1.0);
+                }
+            });
+        }
+        (dir, root)
+    }
+
+    #[test]
+    fn industrial_scenes_are_read_from_the_evaluated_sensors_files() {
+        let (dir, root) = as_ipd();
+        let d = Dataset::load(&root).unwrap();
+        let r = reference();
+        assert_eq!(d.targets, r.targets);
+        for (id, scene) in &d.scenes {
+            assert_eq!(scene.sensor.map(|s| s.suffix), Some("photoneo"));
+            assert_eq!(scene.images, r.scenes[id].images);
+        }
+        assert_eq!(d.image_size, (640, 480));
+        // MSPD is normalised by the sensor's published width, as the toolkit does.
+        assert_eq!(d.image_width(1), 2064);
+        assert_eq!(
+            d.depth_path(1, 0),
+            root.join("test/000001/depth_photoneo/000000.png")
+        );
+        assert_eq!(d.load_depth(1, 0).unwrap(), r.load_depth(1, 0).unwrap());
+        let files = d.score_files().unwrap();
+        assert!(files.contains(&root.join("test/000002/scene_gt_photoneo.json")));
+        assert!(!files.iter().any(|f| f.to_string_lossy().contains("depth")));
+
+        let msg = crate::supported_errors::check_errors(&d, &crate::Protocol::bop19())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("protocol bop19 needs VSD, which ipd cannot be scored with: bop_toolkit"),
+            "{msg}"
+        );
+        let mut mssd_only = crate::Protocol::bop19();
+        mssd_only.errors.remove(0);
+        crate::supported_errors::check_errors(&d, &mssd_only).unwrap();
+
+        std::fs::rename(&root, dir.path().join("other")).unwrap();
+        let msg = Dataset::load(&dir.path().join("other"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains(
+                "scene_gt.json: no such file, but the scene holds per-sensor annotations \
+                 (scene_gt_cam1.json, scene_gt_photoneo.json)"
+            ),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn fisheye_cameras_are_read_from_cam_model() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        let path = root.join("test/000001/scene_camera.json");
+        let mut params = vec![600.0, 601.0, 320.0, 240.0];
+        params.extend([0.0; 12]);
+        edit_json(&path, |v| {
+            let camera = v["0"].as_object_mut().unwrap();
+            camera.remove("cam_K");
+            camera.insert(
+                "cam_model".into(),
+                serde_json::json!({"image_width": 640, "image_height": 480,
+                    "projection_model_type": "CameraModelType.FISHEYE624",
+                    "projection_params": params}),
+            );
+        });
+        let d = Dataset::load(&root).unwrap();
+        let image = &d.scenes[&1].images[&0];
+        assert_eq!(
+            image.fisheye.map(|f| (f.f, f.c)),
+            Some(((600.0, 601.0), (320.0, 240.0)))
+        );
+        assert_eq!((image.camera.fx(), image.camera.cy()), (600.0, 240.0));
+        assert!(d.scenes[&1].images[&1].fisheye.is_none());
+        let msg = crate::supported_errors::check_errors(&d, &crate::Protocol::eccv18())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("scene 1, image 0 has a fisheye camera"),
+            "{msg}"
+        );
+
+        edit_json(&path, |v| {
+            v["0"]["cam_model"]["projection_params"]
+                .as_array_mut()
+                .unwrap()
+                .pop();
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains("image \"0\": field cam_model: projection_params: expected 15"),
+            "{msg}"
+        );
+        edit_json(&path, |v| {
+            v["0"]["cam_K"] = serde_json::json!([1, 0, 0, 0, 1, 0, 0, 0, 1]);
+        });
+        let msg = load_error(&dir).to_string();
+        assert!(
+            msg.contains("image \"0\": both cam_K and cam_model"),
             "{msg}"
         );
     }

@@ -30,6 +30,7 @@ pub mod score;
 pub mod selection;
 pub mod sensors;
 pub mod stats;
+pub mod supported_errors;
 pub mod visibility;
 
 pub use dataset::Dataset;

@@ -20,6 +20,7 @@ use crate::report::{self, Report};
 use crate::results::Results;
 use crate::score::{ScoredImage, Scores, localization_scores};
 use crate::selection::{ImageWork, select_estimates};
+use crate::supported_errors;
 
 /// Told how much work there is and how much is done; the CLI draws a bar, the service stores
 /// a percentage.
@@ -111,7 +112,7 @@ pub fn evaluate(
     cancel: &AtomicBool,
 ) -> Result<Evaluation> {
     protocol.validate().map_err(Error::Parameters)?;
-    dataset.check_errors(protocol)?;
+    supported_errors::check_errors(dataset, protocol)?;
     let columns = columns(protocol);
     let selection = select_estimates(dataset, results, protocol.n_top);
     progress.start(selection.evaluated as u64);

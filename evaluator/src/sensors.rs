@@ -6,10 +6,6 @@
 //! computes on each dataset are decided by the dataset's name, as in the toolkit's
 //! `dataset_params.py`; the rest of the evaluator only sees the chosen files.
 
-use crate::dataset::Dataset;
-use crate::error::{Error, Result};
-use crate::protocol::{ErrorKind, Protocol};
-
 /// The sensor (or image stream) a scene is evaluated on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EvalSensor {
@@ -67,49 +63,6 @@ pub fn vsd_unsupported(dataset: &str) -> Option<&'static str> {
              datasets (dataset_params.py)",
         ),
         _ => None,
-    }
-}
-
-impl Dataset {
-    /// Refuses a protocol with a pose error this dataset cannot be scored with, naming why:
-    /// VSD where bop_toolkit does not compute it, or on images with a fisheye camera (the
-    /// renderer is a pinhole one).
-    pub fn check_errors(&self, protocol: &Protocol) -> Result<()> {
-        if !protocol
-            .errors
-            .iter()
-            .any(|e| matches!(e.kind, ErrorKind::Vsd(_)))
-        {
-            return Ok(());
-        }
-        let refuse = |why: String| {
-            Err(Error::Parameters(format!(
-                "protocol {} needs VSD, which {} cannot be scored with: {why}",
-                protocol.name.as_str(),
-                self.name
-            )))
-        };
-        if let Some(why) = vsd_unsupported(&self.name) {
-            return refuse(why.to_string());
-        }
-        for scene in self.scenes.values() {
-            if let Some(image) = scene.images.values().find(|i| i.fisheye.is_some()) {
-                return refuse(format!(
-                    "scene {}, image {} has a fisheye camera (cam_model), and VSD renders with \
-                     a pinhole one",
-                    scene.id, image.id
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// The image width MSPD is normalised by in a scene: its sensor's, else the dataset's.
-    pub fn image_width(&self, scene_id: u32) -> u32 {
-        self.scenes
-            .get(&scene_id)
-            .and_then(|s| s.sensor)
-            .map_or(self.image_size.0, |s| s.size.0)
     }
 }
 

@@ -35,18 +35,16 @@ struct Check {
     needs_vsd: bool,
 }
 
-const CHECKS: &[Check] = &[
-    Check {
-        protocol: "bop19",
-        keys: &[
-            "bop19_average_recall",
-            "bop19_average_recall_vsd",
-            "bop19_average_recall_mssd",
-            "bop19_average_recall_mspd",
-        ],
-        needs_vsd: true,
-    },
-];
+const CHECKS: &[Check] = &[Check {
+    protocol: "bop19",
+    keys: &[
+        "bop19_average_recall",
+        "bop19_average_recall_vsd",
+        "bop19_average_recall_mssd",
+        "bop19_average_recall_mspd",
+    ],
+    needs_vsd: true,
+}];
 
 /// The protocols that need VSD.
 const VSD_PROTOCOLS: [&str; 2] = ["bop19", "eccv18"];
@@ -165,7 +163,10 @@ fn layouts_are_published_as_dataset_params_reads_them() {
     let head = |p: &str| std::fs::read(root.join(p)).expect("read")[..4].to_vec();
     assert_eq!(head("handal/test/000001/rgb/000000.jpg")[..2], [0xff, 0xd8]);
     assert_eq!(head("hot3d/test/003366/rgb/000000.jpg")[..2], [0xff, 0xd8]);
-    assert_eq!(head("itoddmv/test/000001/depth_3dlong/000000.tif"), b"II*\0");
+    assert_eq!(
+        head("itoddmv/test/000001/depth_3dlong/000000.tif"),
+        b"II*\0"
+    );
     // HOT3D's cameras are fisheye models, not cam_K.
     let cameras = read_json(&root.join("hot3d/test/003366/scene_camera_rgb.json"));
     assert!(cameras["0"].get("cam_K").is_none());
@@ -175,7 +176,10 @@ fn layouts_are_published_as_dataset_params_reads_them() {
     );
     assert_eq!(cameras["0"]["cam_model"]["image_width"], 1408);
     let camera = read_json(&root.join("xyzibd/camera_realsense.json"));
-    assert_eq!((camera["width"].as_u64(), camera["height"].as_u64()), (Some(1280), Some(720)));
+    assert_eq!(
+        (camera["width"].as_u64(), camera["height"].as_u64()),
+        (Some(1280), Some(720))
+    );
 }
 
 #[test]
@@ -211,15 +215,28 @@ fn each_miniature_loads_with_the_evaluated_sensors_files() {
     // HOT3D: Quest 3 scenes on the gray1 stream, Aria scenes on rgb, both fisheye; MSPD is
     // normalised by each stream's width.
     let hot3d = Dataset::load(&root.join("hot3d")).expect("hot3d loads");
-    assert_eq!(hot3d.scenes.keys().copied().collect::<Vec<_>>(), [1288, 3366]);
+    assert_eq!(
+        hot3d.scenes.keys().copied().collect::<Vec<_>>(),
+        [1288, 3366]
+    );
     let aria = &hot3d.scenes[&3366];
-    assert_eq!(aria.sensor.map(|s| (s.suffix, s.size)), Some(("rgb", (1408, 1408))));
+    assert_eq!(
+        aria.sensor.map(|s| (s.suffix, s.size)),
+        Some(("rgb", (1408, 1408)))
+    );
     assert!(aria.images.values().all(|i| i.fisheye.is_some()));
-    assert_eq!((hot3d.image_width(1288), hot3d.image_width(3366)), (1280, 1408));
+    assert_eq!(
+        (hot3d.image_width(1288), hot3d.image_width(3366)),
+        (1280, 1408)
+    );
     // No depth file decides a score where no VSD is computed.
     let files = hot3d.score_files().expect("score files");
     assert!(files.iter().all(|f| !f.to_string_lossy().contains("depth")));
-    assert!(files.iter().any(|f| f.ends_with("test/003366/scene_gt_rgb.json")));
+    assert!(
+        files
+            .iter()
+            .any(|f| f.ends_with("test/003366/scene_gt_rgb.json"))
+    );
 }
 
 #[test]
@@ -295,7 +312,9 @@ fn sensor_files_under_another_name_are_explained() {
         .status()
         .expect("cp runs");
     assert!(status.success());
-    let msg = Dataset::load(&renamed).expect_err("unknown name").to_string();
+    let msg = Dataset::load(&renamed)
+        .expect_err("unknown name")
+        .to_string();
     assert!(
         msg.contains("scene_gt.json: no such file, but the scene holds per-sensor annotations")
             && msg.contains("scene_gt_cam1.json")
