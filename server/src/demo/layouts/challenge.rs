@@ -363,8 +363,11 @@ fn convert_images(scene: &Path, images: Images, suffix: &str) -> Result<()> {
             rename(&rgb, &out)
         };
     }
+    // Moved aside first: the converted images may go to a folder of the same name (`rgb/`).
+    let pngs = scene.join(".rgb-png");
+    rename(&rgb, &pngs)?;
     std::fs::create_dir_all(&out)?;
-    let mut names: Vec<_> = std::fs::read_dir(&rgb)?
+    let mut names: Vec<_> = std::fs::read_dir(&pngs)?
         .map(|e| Ok(e?.path()))
         .collect::<Result<_>>()?;
     names.sort();
@@ -393,7 +396,7 @@ fn convert_images(scene: &Path, images: Images, suffix: &str) -> Result<()> {
             }
         }
     }
-    std::fs::remove_dir_all(&rgb)?;
+    std::fs::remove_dir_all(&pngs)?;
     if images == Images::GrayTiff {
         // ITODD's sensors store depth as TIFF too.
         for entry in std::fs::read_dir(scene.join("depth"))? {
