@@ -48,8 +48,6 @@ pub struct ChallengeLayout {
     /// (width, height) of the evaluated images, as `dataset_params.py` states them (for
     /// HOT3D those of the Quest 3 stream; Aria's RGB is 1408 x 1408).
     pub published_size: (u32, u32),
-    /// Whether the evaluated sensor records depth (and the toolkit computes VSD on it).
-    pub vsd: bool,
     kind: Kind,
 }
 
@@ -70,19 +68,16 @@ pub const CHALLENGE_LAYOUTS: [ChallengeLayout; 6] = [
     ChallengeLayout {
         name: "hopev2",
         published_size: (1920, 1080),
-        vsd: true,
         kind: Kind::Classic(Images::RgbPng),
     },
     ChallengeLayout {
         name: "handal",
         published_size: (1920, 1440),
-        vsd: true,
         kind: Kind::Classic(Images::RgbJpeg),
     },
     ChallengeLayout {
         name: "ipd",
         published_size: (2064, 1544),
-        vsd: false,
         kind: Kind::Sensors {
             eval: "photoneo",
             images: Images::RgbPng,
@@ -96,7 +91,6 @@ pub const CHALLENGE_LAYOUTS: [ChallengeLayout; 6] = [
     ChallengeLayout {
         name: "xyzibd",
         published_size: (1440, 1080),
-        vsd: false,
         kind: Kind::Sensors {
             eval: "xyz",
             images: Images::GrayPng,
@@ -106,7 +100,6 @@ pub const CHALLENGE_LAYOUTS: [ChallengeLayout; 6] = [
     ChallengeLayout {
         name: "itoddmv",
         published_size: (1280, 960),
-        vsd: false,
         kind: Kind::Sensors {
             eval: "3dlong",
             images: Images::GrayTiff,
@@ -120,7 +113,6 @@ pub const CHALLENGE_LAYOUTS: [ChallengeLayout; 6] = [
     ChallengeLayout {
         name: "hot3d",
         published_size: (1280, 1024),
-        vsd: false,
         kind: Kind::Hot3d,
     },
 ];
