@@ -183,25 +183,13 @@ pub fn evaluate(
             "max_estimates_per_image must be at least 1".into(),
         ));
     }
-    let kept = kept::keep(results, max_estimates_per_image);
+    let Plan {
+        kept,
+        images,
+        work,
+        evaluated,
+    } = Plan::new(dataset, results, max_estimates_per_image);
     let average_time = kept::average_time_per_image(results, &kept);
-    let images = target_images(dataset);
-
-    let mut by_image_object: HashMap<(u32, u32, u32), Vec<usize>> = HashMap::new();
-    for &i in &kept.order {
-        let e = &results.estimates[i];
-        by_image_object
-            .entry((e.scene_id, e.im_id, e.obj_id))
-            .or_default()
-            .push(i);
-    }
-    let work: Vec<image_errors::ImageWork> = images
-        .iter()
-        .map(|&(scene_id, im_id)| {
-            image_errors::ImageWork::new(dataset, scene_id, im_id, &by_image_object)
-        })
-        .collect();
-    let evaluated: usize = work.iter().map(|w| w.estimate_count()).sum();
     progress.start(evaluated as u64);
 
     let symmetries = image_errors::symmetries(dataset, &work);
@@ -258,6 +246,66 @@ pub fn evaluate(
         bop24_average_time_per_image: average_time.unwrap_or(-1.0),
         errors,
     })
+}
+
+/// What a result file covers of a dataset's detection targets, known before any error is
+/// computed (for `check-results`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Coverage {
+    pub target_images: usize,
+    /// Target images without a kept estimate of an object they hold.
+    pub images_without_estimate: usize,
+    pub estimates_beyond_cap: usize,
+    pub estimates_evaluated: usize,
+    /// Kept estimates of images that are not targets or of objects absent from the image.
+    pub estimates_ignored: usize,
+}
+
+pub fn coverage(dataset: &Dataset, results: &Results, max_estimates_per_image: usize) -> Coverage {
+    let plan = Plan::new(dataset, results, max_estimates_per_image);
+    Coverage {
+        target_images: plan.images.len(),
+        images_without_estimate: plan.work.iter().filter(|w| w.estimate_count() == 0).count(),
+        estimates_beyond_cap: plan.kept.beyond_cap,
+        estimates_evaluated: plan.evaluated,
+        estimates_ignored: plan.kept.order.len() - plan.evaluated,
+    }
+}
+
+/// The kept estimates sorted into the target images and their objects.
+struct Plan {
+    kept: kept::Kept,
+    images: Vec<(u32, u32)>,
+    work: Vec<image_errors::ImageWork>,
+    evaluated: usize,
+}
+
+impl Plan {
+    fn new(dataset: &Dataset, results: &Results, max_estimates_per_image: usize) -> Self {
+        let kept = kept::keep(results, max_estimates_per_image);
+        let images = target_images(dataset);
+        let mut by_image_object: HashMap<(u32, u32, u32), Vec<usize>> = HashMap::new();
+        for &i in &kept.order {
+            let e = &results.estimates[i];
+            by_image_object
+                .entry((e.scene_id, e.im_id, e.obj_id))
+                .or_default()
+                .push(i);
+        }
+        let work: Vec<image_errors::ImageWork> = images
+            .iter()
+            .map(|&(scene_id, im_id)| {
+                image_errors::ImageWork::new(dataset, scene_id, im_id, &by_image_object)
+            })
+            .collect();
+        let evaluated = work.iter().map(|w| w.estimate_count()).sum();
+        Plan {
+            kept,
+            images,
+            work,
+            evaluated,
+        }
+    }
 }
 
 /// The target images in bop_toolkit's order: scenes as the targets file first names them,
