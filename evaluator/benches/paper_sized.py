@@ -8,6 +8,10 @@ remapped the same way. Every copy is evaluated exactly as the original, so every
 paper-sized set must equal the original's: the script checks that, then prints the wall time
 and the peak memory of each protocol on all cores, and the VSD estimates per second.
 
+bop24 (6D detection) runs on the same copies with the BOP'24 fixture's target images and its
+`noisy` result file (tests/fixtures/bop24: random scores, so no two estimates tie and every
+copy ranks like the original), and must give the original's average precisions.
+
     cargo build --release -p server
     python3 evaluator/benches/paper_sized.py [--copies 611] [--results noisemedium] [--threads N]
 
@@ -28,6 +32,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURE = ROOT / "tests" / "fixtures" / "reference"
+BOP24 = ROOT / "tests" / "fixtures" / "bop24"
 BINARY = ROOT / "target" / "release" / "poseboard"
 TOOLKIT_VSD_PER_S = 47.0
 
@@ -57,6 +62,12 @@ def build_dataset(out: Path, copies: int) -> dict:
         dict(t, scene_id=new) for new, s in sorted(mapping.items()) for t in by_original.get(s, [])
     ]
     (out / "test_targets_bop19.json").write_text(json.dumps(replicated))
+    images = json.loads((BOP24 / "test_targets_bop24.json").read_text())
+    replicated = [
+        dict(t, scene_id=new) for new, s in sorted(mapping.items()) for t in images
+        if t["scene_id"] == s
+    ]
+    (out / "test_targets_bop24.json").write_text(json.dumps(replicated))
     return mapping
 
 
@@ -80,10 +91,11 @@ def replicate_results(src: Path, dst: Path, mapping: dict) -> int:
     return n
 
 
-def evaluate(binary: Path, dataset: Path, results: Path, protocol: str, threads, out: Path):
+def evaluate(binary: Path, dataset: Path, results: Path, protocol: str, threads, out: Path,
+             extra=()):
     """Runs poseboard eval; returns (report, seconds, peak resident MB)."""
     cmd = [str(binary), "eval", "--dataset", str(dataset), "--results", str(results),
-           "--protocol", protocol, "--out", str(out)]
+           "--protocol", protocol, "--out", str(out), *extra]
     if threads:
         cmd += ["--threads", str(threads)]
     cmd = ["/usr/bin/time", "-v"] + cmd
@@ -101,6 +113,13 @@ COMPARED = ["recall", "mean_obj_recall", "obj_recalls", "bop19_average_recall",
             "bop19_average_recall_vsd", "bop19_average_recall_mssd",
             "bop19_average_recall_mspd", "obj_average_recalls", "average_recalls",
             "per_error_recall_per_threshold"]
+COMPARED_BOP24 = ["bop24_mAP", "bop24_mAP_mssd", "bop24_mAP_mssd_mm", "bop24_mAP_mspd"]
+
+
+def average_precisions(report: dict) -> list:
+    """bop24's per-object APs (the instance counts grow with the copies)."""
+    return [(e["error"], [(o["obj_id"], o["AP"], o["ap_per_threshold"]) for o in e["objects"]])
+            for e in report["errors"]]
 
 
 def main():
@@ -122,6 +141,7 @@ def main():
         targets = len(json.loads((tmp / "big" / "synthA" / "test_targets_bop19.json").read_text()))
         print(f"paper-sized set: {len(mapping)} scenes, {targets} targets, {rows} estimates "
               f"({args.copies} copies of the reference), threads: {args.threads or os.cpu_count()}")
+        times = {}
         for protocol in ["eccv18", "bop19"]:
             small, _, _ = evaluate(args.binary, FIXTURE / "dataset", FIXTURE / "results" / name, protocol,
                                    args.threads, tmp / f"small_{protocol}.json")
@@ -131,10 +151,26 @@ def main():
             if differing:
                 sys.exit(f"{protocol}: scores differ from the reference file's: {differing}")
             evaluated = big["estimates_evaluated"]
+            times[protocol] = seconds
             print(f"  {protocol:<7} {seconds:6.2f} s  peak {mb:6.0f} MB  "
                   f"{evaluated / seconds:8.0f} estimates/s "
                   f"({evaluated / seconds / TOOLKIT_VSD_PER_S:.0f}x bop_toolkit's 47/s)  "
                   f"scores equal the reference file's")
+
+        name = "noisy_synthA-test.csv"
+        rows = replicate_results(BOP24 / "results" / name, tmp / "big" / name, mapping)
+        small, _, _ = evaluate(args.binary, FIXTURE / "dataset", BOP24 / "results" / name, "bop24",
+                               args.threads, tmp / "small_bop24.json",
+                               ["--targets-file", str(BOP24 / "test_targets_bop24.json")])
+        big, seconds, mb = evaluate(args.binary, tmp / "big" / "synthA", tmp / "big" / name,
+                                    "bop24", args.threads, tmp / "big_bop24.json")
+        differing = [k for k in COMPARED_BOP24 if small[k] != big[k]]
+        if differing or average_precisions(small) != average_precisions(big):
+            sys.exit(f"bop24: scores differ from the fixture file's: {differing or 'per object'}")
+        evaluated = big["estimates_evaluated"]
+        print(f"  bop24   {seconds:6.2f} s  peak {mb:6.0f} MB  {evaluated / seconds:8.0f} "
+              f"estimates/s ({rows} estimates, {big['target_images']} target images)  "
+              f"{seconds / times['bop19']:.2f}x bop19's time  scores equal the fixture file's")
 
 
 if __name__ == "__main__":

@@ -119,6 +119,19 @@ pub struct Target {
     pub inst_count: u32,
 }
 
+/// What a targets file names. The 6D localization protocols need objects and instance counts;
+/// BOP'24's 6D detection names images only (the method is not told what is in them), and
+/// bop_toolkit then takes every object of an image's ground truth as a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetsForm {
+    /// One entry per image and object with `inst_count` (`test_targets_bop19.json`).
+    Objects,
+    /// One entry per image (`test_targets_bop24.json`); [`Dataset::targets`] then holds every
+    /// object of each listed image's ground truth with all its instances, in the order of the
+    /// file's images and of the objects' first instance in `scene_gt.json`.
+    Images,
+}
+
 /// Which split and targets file to read; BOP'19 evaluates `test` with `test_targets_bop19.json`.
 ///
 /// BOP publishes a split in the folder `{split}` or, for datasets recorded with several sensors
@@ -155,6 +168,7 @@ pub struct Dataset {
     pub scenes: BTreeMap<u32, Scene>,
     /// In the order of the targets file.
     pub targets: Vec<Target>,
+    pub targets_form: TargetsForm,
     /// (width, height) in pixels.
     pub image_size: (u32, u32),
     /// The files read for the targets and the objects' information.
@@ -181,7 +195,7 @@ impl Dataset {
         }
         let (split_dir, split_type) = find_split(root, opts)?;
         let targets_path = root.join(&opts.targets_file);
-        let targets = load_targets(&targets_path)?;
+        let (targets_form, listed) = load_targets(&targets_path)?;
 
         let models_dir = [root.join("models_eval"), root.join("models")]
             .into_iter()
@@ -199,7 +213,7 @@ impl Dataset {
             })
             .unwrap_or_default();
 
-        let scene_ids: BTreeSet<u32> = targets.iter().map(|t| t.scene_id).collect();
+        let scene_ids: BTreeSet<u32> = listed.iter().map(|t| t.scene_id).collect();
         let scenes = scene_ids
             .into_iter()
             .map(|id| {
@@ -211,17 +225,21 @@ impl Dataset {
 
         // Checked before the meshes are read: a wrong target is cheaper to report than a
         // large mesh is to parse.
-        for (n, t) in targets.iter().enumerate() {
-            let which = format!(
-                "target {n} (scene_id {}, im_id {}, obj_id {})",
-                t.scene_id, t.im_id, t.obj_id
-            );
-            if !infos.contains_key(&t.obj_id) {
+        for (n, t) in listed.iter().enumerate() {
+            let which = match t.obj_id {
+                Some(obj_id) => format!(
+                    "target {n} (scene_id {}, im_id {}, obj_id {obj_id})",
+                    t.scene_id, t.im_id
+                ),
+                None => format!("target {n} (scene_id {}, im_id {})", t.scene_id, t.im_id),
+            };
+            if let Some(obj_id) = t.obj_id
+                && !infos.contains_key(&obj_id)
+            {
                 return Err(Error::format(
                     &targets_path,
                     format!(
-                        "{which}: object {} has no entry in {}",
-                        t.obj_id,
+                        "{which}: object {obj_id} has no entry in {}",
                         models_dir.join("models_info.json").display()
                     ),
                 ));
@@ -239,6 +257,18 @@ impl Dataset {
                 ));
             }
         }
+        let targets = match targets_form {
+            TargetsForm::Objects => listed
+                .iter()
+                .map(|t| Target {
+                    scene_id: t.scene_id,
+                    im_id: t.im_id,
+                    obj_id: t.obj_id.unwrap_or_default(),
+                    inst_count: t.inst_count.unwrap_or_default(),
+                })
+                .collect(),
+            TargetsForm::Images => image_targets(&listed, &scenes, &targets_path, &infos)?,
+        };
 
         let objects = infos
             .into_iter()
@@ -263,6 +293,7 @@ impl Dataset {
             objects,
             scenes,
             targets,
+            targets_form,
             image_size: (0, 0),
             targets_path,
             models_info_path,
@@ -466,10 +497,9 @@ pub(crate) fn find_split(root: &Path, opts: &DatasetOptions) -> Result<(PathBuf,
     }
 }
 
-/// The targets of a localization protocol: one entry per image and object with the number of
-/// instances. BOP'24's `test_targets_bop24.json` of the 6D detection task lists images only,
-/// which bop_toolkit refuses for localization as well.
-fn load_targets(path: &Path) -> Result<Vec<Target>> {
+/// The entries of a targets file, and which form they all share: with `obj_id` and
+/// `inst_count` (BOP'19) or without (BOP'24 detection, images only).
+fn load_targets(path: &Path) -> Result<(TargetsForm, Vec<RawTarget>)> {
     if !path.is_file() {
         return Err(Error::format(
             path,
@@ -477,28 +507,84 @@ fn load_targets(path: &Path) -> Result<Vec<Target>> {
         ));
     }
     let raw = read_json::<Vec<RawTarget>>(path)?;
-    if raw.is_empty() {
+    let Some(first) = raw.first() else {
         return Err(Error::format(path, "the file lists no targets"));
-    }
-    raw.into_iter()
-        .enumerate()
-        .map(|(n, t)| match (t.obj_id, t.inst_count) {
-            (Some(obj_id), Some(inst_count)) => Ok(Target {
-                scene_id: t.scene_id,
-                im_id: t.im_id,
-                obj_id,
-                inst_count,
-            }),
-            _ => Err(Error::format(
+    };
+    let form = match (first.obj_id, first.inst_count) {
+        (Some(_), Some(_)) => TargetsForm::Objects,
+        _ => TargetsForm::Images,
+    };
+    for (n, t) in raw.iter().enumerate() {
+        if t.obj_id.is_some() != t.inst_count.is_some() {
+            return Err(Error::format(
+                path,
+                format!("target {n} has only one of obj_id and inst_count"),
+            ));
+        }
+        let ok = match form {
+            TargetsForm::Objects => t.obj_id.is_some() && t.inst_count.is_some(),
+            TargetsForm::Images => t.obj_id.is_none() && t.inst_count.is_none(),
+        };
+        if !ok {
+            return Err(Error::format(
                 path,
                 format!(
-                    "target {n} has no obj_id and inst_count: a list of images (BOP'24 \
-                     detection targets) cannot be evaluated per object; expected targets as \
-                     in test_targets_bop19.json"
+                    "target {n} mixes the two forms of targets: give every entry an obj_id \
+                     and an inst_count (as test_targets_bop19.json), or none (a list of \
+                     images, as test_targets_bop24.json)"
                 ),
-            )),
-        })
-        .collect()
+            ));
+        }
+    }
+    Ok((form, raw))
+}
+
+/// bop_toolkit's detection targets (`get_im_targets`): every object in a listed image's
+/// ground truth, whatever its visibility, counting all its instances. An image listed twice
+/// is taken once.
+fn image_targets(
+    listed: &[RawTarget],
+    scenes: &BTreeMap<u32, Scene>,
+    path: &Path,
+    infos: &BTreeMap<u32, ModelInfo>,
+) -> Result<Vec<Target>> {
+    let mut seen = BTreeSet::new();
+    let mut targets: Vec<Target> = Vec::new();
+    for t in listed {
+        if !seen.insert((t.scene_id, t.im_id)) {
+            continue;
+        }
+        let image = &scenes[&t.scene_id].images[&t.im_id];
+        let first = targets.len();
+        for (gt_id, g) in image.gt.iter().enumerate() {
+            if !infos.contains_key(&g.obj_id) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "scene {} image {} instance {gt_id}: object {} has no entry in \
+                         models_info.json",
+                        t.scene_id, t.im_id, g.obj_id
+                    ),
+                ));
+            }
+            match targets[first..].iter_mut().find(|x| x.obj_id == g.obj_id) {
+                Some(x) => x.inst_count += 1,
+                None => targets.push(Target {
+                    scene_id: t.scene_id,
+                    im_id: t.im_id,
+                    obj_id: g.obj_id,
+                    inst_count: 1,
+                }),
+            }
+        }
+    }
+    if targets.is_empty() {
+        return Err(Error::format(
+            path,
+            "no listed image holds a ground-truth instance: nothing to evaluate",
+        ));
+    }
+    Ok(targets)
 }
 
 pub(crate) fn scene_dir(split_dir: &Path, scene_id: u32) -> PathBuf {
@@ -1293,18 +1379,28 @@ mod tests {
     fn targets_file_problems_are_named() {
         let dir = copy();
         let root = dir.path().join("synthA");
-        std::fs::write(
-            root.join("test_targets_bop24.json"),
-            r#"[{"scene_id": 1, "im_id": 0}]"#,
-        )
-        .unwrap();
         let bop24 = DatasetOptions {
             targets_file: "test_targets_bop24.json".into(),
             ..DatasetOptions::default()
         };
+        std::fs::write(
+            root.join("test_targets_bop24.json"),
+            r#"[{"scene_id": 1, "im_id": 0}, {"scene_id": 1, "im_id": 1, "obj_id": 2}]"#,
+        )
+        .unwrap();
         let msg = Dataset::load_with(&root, &bop24).unwrap_err().to_string();
         assert!(
-            msg.contains("test_targets_bop24.json: target 0 has no obj_id and inst_count"),
+            msg.contains("test_targets_bop24.json: target 1 has only one of obj_id and inst_count"),
+            "{msg}"
+        );
+        std::fs::write(
+            root.join("test_targets_bop24.json"),
+            r#"[{"scene_id": 1, "im_id": 0}, {"scene_id": 1, "im_id": 1, "obj_id": 2, "inst_count": 1}]"#,
+        )
+        .unwrap();
+        let msg = Dataset::load_with(&root, &bop24).unwrap_err().to_string();
+        assert!(
+            msg.contains("test_targets_bop24.json: target 1 mixes the two forms of targets"),
             "{msg}"
         );
         std::fs::remove_file(root.join("test_targets_bop19.json")).unwrap();
@@ -1440,5 +1536,44 @@ mod tests {
             msg.contains("image \"0\": both cam_K and cam_model"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn a_list_of_images_targets_every_object_of_their_ground_truth() {
+        let dir = copy();
+        let root = dir.path().join("synthA");
+        // Image 0 of scene 1 listed twice, and an image of scene 2 before it.
+        std::fs::write(
+            root.join("test_targets_bop24.json"),
+            r#"[{"scene_id": 2, "im_id": 0}, {"scene_id": 1, "im_id": 0}, {"scene_id": 1, "im_id": 0}]"#,
+        )
+        .unwrap();
+        let bop24 = DatasetOptions {
+            targets_file: "test_targets_bop24.json".into(),
+            ..DatasetOptions::default()
+        };
+        let d = Dataset::load_with(&root, &bop24).unwrap();
+        assert_eq!(d.targets_form, TargetsForm::Images);
+        let mut expected = Vec::new();
+        for (scene_id, im_id) in [(2, 0), (1, 0)] {
+            let image = &d.scenes[&scene_id].images[&im_id];
+            for g in &image.gt {
+                if !expected.iter().any(|t: &Target| {
+                    t.scene_id == scene_id && t.im_id == im_id && t.obj_id == g.obj_id
+                }) {
+                    let inst_count =
+                        image.gt.iter().filter(|h| h.obj_id == g.obj_id).count() as u32;
+                    expected.push(Target {
+                        scene_id,
+                        im_id,
+                        obj_id: g.obj_id,
+                        inst_count,
+                    });
+                }
+            }
+        }
+        assert_eq!(d.targets, expected);
+        assert!(d.targets.iter().any(|t| t.inst_count > 1) || d.targets.len() > 2);
+        assert_eq!(reference().targets_form, TargetsForm::Objects);
     }
 }

@@ -12,6 +12,7 @@ pub mod coco;
 pub mod dataset;
 pub mod depth_files;
 mod depth_png;
+pub mod detection;
 pub mod error;
 pub mod fisheye;
 pub mod matching;

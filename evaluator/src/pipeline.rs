@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use crate::bootstrap::{self, Bootstrap, ImageCounts};
-use crate::dataset::{Dataset, Image};
+use crate::dataset::{Dataset, Image, TargetsForm};
 use crate::error::{Error, Result};
 use crate::matching::{EstimateErrors, valid_gts};
 use crate::math::Pose;
@@ -113,6 +113,16 @@ pub fn evaluate(
 ) -> Result<Evaluation> {
     protocol.validate().map_err(Error::Parameters)?;
     supported_errors::check_errors(dataset, protocol)?;
+    if dataset.targets_form == TargetsForm::Images {
+        return Err(Error::format(
+            &dataset.targets_path,
+            format!(
+                "a list of images (BOP'24 detection targets) cannot be evaluated per object by \
+                 {}: expected targets as in test_targets_bop19.json, or score with bop24",
+                protocol.name.as_str()
+            ),
+        ));
+    }
     let columns = columns(protocol);
     let selection = select_estimates(dataset, results, protocol.n_top);
     progress.start(selection.evaluated as u64);

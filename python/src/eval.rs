@@ -9,6 +9,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::Duration;
 
+use evaluator::dataset::DatasetOptions;
+use evaluator::detection;
 use evaluator::{Dataset, Error, Evaluation, Progress, results};
 use pyo3::exceptions::{
     PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
@@ -27,9 +29,14 @@ pub struct PyDataset {
 #[pymethods]
 impl PyDataset {
     #[new]
-    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+    #[pyo3(signature = (path, targets_file=None))]
+    fn new(py: Python<'_>, path: PathBuf, targets_file: Option<String>) -> PyResult<Self> {
+        let mut options = DatasetOptions::default();
+        if let Some(file) = targets_file {
+            options.targets_file = file;
+        }
         let dataset = py
-            .detach(|| Dataset::load(&path))
+            .detach(|| Dataset::load_with(&path, &options))
             .map_err(|e| dataset_error(&path, &e))?;
         Ok(PyDataset {
             inner: Arc::new(dataset),
@@ -138,12 +145,20 @@ enum DatasetSource {
 }
 
 impl DatasetSource {
-    fn load(self) -> Result<Arc<Dataset>, Failure> {
+    /// A folder is read with `targets_file`; a loaded dataset keeps the targets it was loaded
+    /// with.
+    fn load(self, targets_file: &str) -> Result<Arc<Dataset>, Failure> {
         match self {
             DatasetSource::Loaded(d) => Ok(d),
-            DatasetSource::Dir(p) => Dataset::load(&p)
-                .map(Arc::new)
-                .map_err(|e| Failure::Dataset(p, e)),
+            DatasetSource::Dir(p) => {
+                let options = DatasetOptions {
+                    targets_file: targets_file.to_string(),
+                    ..DatasetOptions::default()
+                };
+                Dataset::load_with(&p, &options)
+                    .map(Arc::new)
+                    .map_err(|e| Failure::Dataset(p, e))
+            }
         }
     }
 }
@@ -214,14 +229,15 @@ fn error(e: &Error, context: String) -> PyErr {
 }
 
 /// Evaluates and returns the report as `poseboard eval --out` writes it, and with
-/// `with_errors` every evaluated estimate's errors as `--errors-out` writes them.
+/// `with_errors` every evaluated estimate's errors as `--errors-out` writes them. `bop24`
+/// reads a folder's `test_targets_bop24.json` and takes none of the localization options.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (
     dataset, protocol, *, results_path=None, results_csv=None, threads=None, progress=None,
     with_errors=false, visib_mode=None, tau=None, tau_normalized=None, theta=None, delta=None,
     n_top=None, visib_gt_min=None, max_sym_disc_step=None, extra_errors=Vec::new(),
-    ad_threshold=0.1,
+    ad_threshold=0.1, max_estimates_per_image=None,
 ))]
 pub fn evaluate(
     py: Python<'_>,
@@ -242,6 +258,7 @@ pub fn evaluate(
     max_sym_disc_step: Option<f64>,
     extra_errors: Vec<String>,
     ad_threshold: f64,
+    max_estimates_per_image: Option<usize>,
 ) -> PyResult<(String, Option<String>)> {
     let overrides = Overrides {
         visib_mode,
@@ -255,7 +272,26 @@ pub fn evaluate(
         extra_errors,
         ad_threshold,
     };
-    let protocol = protocol::build(protocol, &overrides).map_err(PyValueError::new_err)?;
+    let task = if protocol == detection::PROTOCOL {
+        if overrides.any() || with_errors {
+            return Err(PyValueError::new_err(
+                "bop24 has fixed errors and thresholds: the options of the localization \
+                 protocols (tau, n_top, with_errors, ...) do not apply",
+            ));
+        }
+        Task::Bop24(max_estimates_per_image)
+    } else {
+        if max_estimates_per_image.is_some() {
+            return Err(PyValueError::new_err(
+                "max_estimates_per_image is for protocol=\"bop24\" only",
+            ));
+        }
+        Task::Localization(protocol::build(protocol, &overrides).map_err(PyValueError::new_err)?)
+    };
+    let targets_file = match task {
+        Task::Bop24(_) => "test_targets_bop24.json".to_string(),
+        Task::Localization(_) => DatasetOptions::default().targets_file,
+    };
     let source = match (results_path, results_csv) {
         (Some(path), None) => ResultsSource::File(path),
         (None, Some(csv)) => ResultsSource::Rows(csv),
@@ -270,7 +306,7 @@ pub fn evaluate(
         py,
         progress.as_ref(),
         |progress, cancel| -> Result<_, Failure> {
-            let dataset = dataset.load()?;
+            let dataset = dataset.load(&targets_file)?;
             let results = match &source {
                 ResultsSource::File(path) => {
                     results::load_results(path).map_err(|e| Failure::Results(Some(path.clone()), e))
@@ -282,15 +318,38 @@ pub fn evaluate(
                 .num_threads(threads.unwrap_or(0))
                 .build()
                 .map_err(|e| Failure::Threads(format!("cannot start the worker threads: {e}")))?;
-            let evaluation = pool
-                .install(|| evaluator::evaluate(&dataset, &results, &protocol, progress, cancel))
-                .map_err(Failure::Evaluation)?;
-            let report =
-                serde_json::to_string_pretty(&evaluation.report).expect("a report serialises");
-            Ok((report, with_errors.then(|| errors_json(&evaluation))))
+            match &task {
+                Task::Localization(protocol) => {
+                    let evaluation = pool
+                        .install(|| {
+                            evaluator::evaluate(&dataset, &results, protocol, progress, cancel)
+                        })
+                        .map_err(Failure::Evaluation)?;
+                    let report = serde_json::to_string_pretty(&evaluation.report)
+                        .expect("a report serialises");
+                    Ok((report, with_errors.then(|| errors_json(&evaluation))))
+                }
+                Task::Bop24(cap) => {
+                    let cap = cap.unwrap_or_else(|| {
+                        detection::default_max_estimates_per_image(&dataset.name)
+                    });
+                    let report = pool
+                        .install(|| detection::evaluate(&dataset, &results, cap, progress, cancel))
+                        .map_err(Failure::Evaluation)?;
+                    let report =
+                        serde_json::to_string_pretty(&report).expect("a report serialises");
+                    Ok((report, None))
+                }
+            }
         },
     )?;
     outcome.map_err(|f| f.into_py(py))
+}
+
+/// What `evaluate` runs: a localization protocol, or BOP'24 detection with its cap.
+enum Task {
+    Localization(evaluator::Protocol),
+    Bop24(Option<usize>),
 }
 
 fn errors_json(evaluation: &Evaluation) -> String {
@@ -310,7 +369,8 @@ pub fn check_results<'py>(
     let checked = py.detach(|| -> Result<_, Failure> {
         let results =
             results::load_results(&path).map_err(|e| Failure::Results(Some(path.clone()), e))?;
-        let dataset = dataset.map(DatasetSource::load).transpose()?;
+        let targets_file = DatasetOptions::default().targets_file;
+        let dataset = dataset.map(|d| d.load(&targets_file)).transpose()?;
         Ok((results, dataset))
     });
     let (results, dataset) = checked.map_err(|f| f.into_py(py))?;

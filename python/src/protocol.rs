@@ -23,6 +23,21 @@ pub struct Overrides {
     pub ad_threshold: f64,
 }
 
+impl Overrides {
+    /// Whether any option is set (the extra errors included).
+    pub fn any(&self) -> bool {
+        self.visib_mode.is_some()
+            || self.tau.is_some()
+            || self.tau_normalized.is_some()
+            || self.theta.is_some()
+            || self.delta.is_some()
+            || self.n_top.is_some()
+            || self.visib_gt_min.is_some()
+            || self.max_sym_disc_step.is_some()
+            || !self.extra_errors.is_empty()
+    }
+}
+
 /// The named protocol with `overrides` applied (by the evaluator's own rule, as the command
 /// line applies them); the message says which value is wrong.
 pub fn build(name: &str, o: &Overrides) -> Result<Protocol, String> {

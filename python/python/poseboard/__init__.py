@@ -50,11 +50,12 @@ class Dataset:
     Loading reads every model and the ground truth of the test targets; pass a ``Dataset``
     instead of a folder to :func:`evaluate` to pay for that once when evaluating often (e.g.
     after every training epoch). The folder holds ``models_eval/`` (or ``models/``),
-    ``test/`` and ``test_targets_bop19.json``.
+    ``test/`` and ``test_targets_bop19.json``; for ``protocol="bop24"`` load it with
+    ``targets_file="test_targets_bop24.json"`` (the images of 6D detection).
     """
 
-    def __init__(self, path: PathLike) -> None:
-        self._native = _native.Dataset(os.fspath(path))
+    def __init__(self, path: PathLike, targets_file: Optional[str] = None) -> None:
+        self._native = _native.Dataset(os.fspath(path), targets_file)
 
     @property
     def name(self) -> str:
@@ -198,6 +199,7 @@ def _evaluate_json(
     max_sym_disc_step: Optional[float] = None,
     extra_errors: Union[str, Sequence[str]] = (),
     ad_threshold: float = 0.1,
+    max_estimates_per_image: Optional[int] = None,
 ) -> tuple[str, Optional[str]]:
     """:func:`evaluate`, returning the JSON texts ``poseboard eval`` writes (``--out``, and
     with ``with_errors`` ``--errors-out``)."""
@@ -222,6 +224,7 @@ def _evaluate_json(
         max_sym_disc_step=max_sym_disc_step,
         extra_errors=[extra_errors] if isinstance(extra_errors, str) else list(extra_errors),
         ad_threshold=ad_threshold,
+        max_estimates_per_image=max_estimates_per_image,
         results_path=results_path,
         results_csv=results_csv,
     )
@@ -244,6 +247,7 @@ def evaluate(
     max_sym_disc_step: Optional[float] = None,
     extra_errors: Union[str, Sequence[str]] = (),
     ad_threshold: float = 0.1,
+    max_estimates_per_image: Optional[int] = None,
 ) -> dict[str, Any]:
     """Evaluates pose estimates on a BOP dataset; returns the report ``poseboard eval --out``
     writes, parsed.
@@ -254,8 +258,13 @@ def evaluate(
         ``inout.load_bop_results`` returns; ``R`` 3x3 or 9 numbers, ``t`` 3 numbers, ``time``
         optional, -1 = not measured), or a numpy structured array with those fields. Rows pass
         the checks of a file; in messages, row i is line i + 1.
-    :param protocol: ``"bop19"`` (the BOP Challenge's average recall over VSD, MSSD and MSPD)
-        or ``"eccv18"`` (the paper: VSD recall).
+    :param protocol: ``"bop19"`` (the BOP Challenge's average recall over VSD, MSSD and MSPD),
+        ``"eccv18"`` (the paper: VSD recall) or ``"bop24"`` (6D detection: average precision
+        from MSSD and MSPD, keys ``bop24_mAP``, ``bop24_mAP_mssd``, ``bop24_mAP_mspd``,
+        ``bop24_mAP_mssd_mm``, ``bop25_mAP``, ``bop25_mAP_mm``,
+        ``bop24_average_time_per_image``; a folder is read with its
+        ``test_targets_bop24.json``, and the options below except ``threads``, ``progress`` and
+        ``max_estimates_per_image`` do not apply).
     :param threads: worker threads; default every core.
     :param progress: called as ``progress(done, total)`` (estimates) from the calling thread
         while the evaluation runs, and once at its end. An exception it raises (and Ctrl-C)
@@ -277,6 +286,8 @@ def evaluate(
         declared symmetries, ADD for the others), reported at ``ad_threshold``.
     :param ad_threshold: threshold of correctness of the extra errors, as a fraction of the
         object diameter.
+    :param max_estimates_per_image: ``bop24``: estimates kept per image, the best-scored over
+        all objects (default: bop_toolkit's, 200 on ``xyzibd`` and 100 elsewhere).
 
     The GIL is released while the evaluation runs. Raises ValueError for invalid results
     (listing every problem with its line; the list is also in the exception's ``problems``
@@ -299,6 +310,7 @@ def evaluate(
         max_sym_disc_step=max_sym_disc_step,
         extra_errors=extra_errors,
         ad_threshold=ad_threshold,
+        max_estimates_per_image=max_estimates_per_image,
     )
     parsed: dict[str, Any] = json.loads(report)
     return parsed

@@ -10,7 +10,9 @@ EVALUATOR_VERSION: str
 Rt = tuple[list[float], list[float]]
 
 class Dataset:
-    def __init__(self, path: Union[str, os.PathLike[str]]) -> None: ...
+    def __init__(
+        self, path: Union[str, os.PathLike[str]], targets_file: Optional[str] = None
+    ) -> None: ...
     @property
     def name(self) -> str: ...
     @property
@@ -42,6 +44,7 @@ def evaluate(
     max_sym_disc_step: Optional[float] = None,
     extra_errors: list[str] = ...,
     ad_threshold: float = 0.1,
+    max_estimates_per_image: Optional[int] = None,
 ) -> tuple[str, Optional[str]]: ...
 def check_results(
     path: str, dataset: Union[Dataset, str, None] = None

@@ -1,9 +1,10 @@
 //! `poseboard eval` and `poseboard check-results`: the evaluator on the command line, for a
 //! researcher with a dataset and a result file on disk.
 //!
-//! The 2D tasks of BOP'22 (`bop22-det`, `bop22-seg`) go to `evaluator::coco` through their own
-//! branch ([`EvalProtocol`]) rather than as `ProtocolName` variants: their files, parameters
-//! and report differ from the 6D protocols', and the server's boards, queue and pages match on
+//! The 2D tasks of BOP'22 (`bop22-det`, `bop22-seg`) go to `evaluator::coco`, and BOP'24's 6D
+//! detection (`bop24`) to `evaluator::detection`, through their own branches ([`EvalProtocol`])
+//! rather than as `ProtocolName` variants: their files, parameters and report differ from the
+//! 6D localization protocols', and the server's boards, queue and pages match on
 //! `ProtocolName` throughout.
 
 use std::path::{Path, PathBuf};
@@ -14,6 +15,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use evaluator::coco::{self, BboxType, CocoGt, CocoReport, CocoTask};
 use evaluator::dataset::DatasetOptions;
+use evaluator::detection::{self, DetectionReport};
 use evaluator::protocol::{ErrorKind, Overrides, ProtocolName};
 use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
@@ -36,10 +38,14 @@ pub struct EvalArgs {
     /// for bop22-det and bop22-seg.
     #[arg(long)]
     pub results: PathBuf,
-    /// eccv18, bop19 (6D localization), bop22-det (2D detection, boxes) or bop22-seg (2D
-    /// segmentation, masks).
+    /// eccv18, bop19 (6D localization), bop24 (6D detection), bop22-det (2D detection, boxes)
+    /// or bop22-seg (2D segmentation, masks).
     #[arg(long, default_value = "bop19")]
     pub protocol: EvalProtocol,
+    /// bop24: estimates kept per image, the best-scored over all objects (default: the
+    /// toolkit's, 200 for xyzibd and 100 for the other datasets).
+    #[arg(long)]
+    pub max_estimates_per_image: Option<usize>,
     /// bop22-det: compare with the boxes around the full silhouette (amodal, the default) or
     /// around the visible part (modal, `scene_gt_coco_modal.json`).
     #[arg(long)]
@@ -102,6 +108,19 @@ pub enum ExtraError {
 }
 
 impl OverrideArgs {
+    /// Whether any 6D localization option is set (the extra errors included).
+    fn any(&self) -> bool {
+        self.visib_mode.is_some()
+            || self.tau.is_some()
+            || self.tau_normalized.is_some()
+            || self.theta.is_some()
+            || self.delta.is_some()
+            || self.n_top.is_some()
+            || self.visib_gt_min.is_some()
+            || self.max_sym_disc_step.is_some()
+            || !self.extra_errors.is_empty()
+    }
+
     pub fn apply(&self, protocol: &mut Protocol) -> Result<()> {
         Overrides {
             visib_mode: self.visib_mode,
@@ -132,6 +151,8 @@ impl OverrideArgs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EvalProtocol {
     Pose(ProtocolName),
+    /// BOP'24 6D detection.
+    Bop24,
     Detection,
     Segmentation,
 }
@@ -142,8 +163,9 @@ impl std::str::FromStr for EvalProtocol {
         match s {
             "bop22-det" => Ok(EvalProtocol::Detection),
             "bop22-seg" => Ok(EvalProtocol::Segmentation),
+            detection::PROTOCOL => Ok(EvalProtocol::Bop24),
             other => other.parse().map(EvalProtocol::Pose).map_err(|_| {
-                format!("unknown protocol `{other}` (eccv18, bop19, bop22-det or bop22-seg)")
+                format!("unknown protocol `{other}` (eccv18, bop19, bop24, bop22-det or bop22-seg)")
             }),
         }
     }
@@ -152,6 +174,7 @@ impl std::str::FromStr for EvalProtocol {
 /// A protocol resolved with its options.
 enum Resolved {
     Pose(ProtocolName),
+    Bop24,
     Coco(CocoTask),
 }
 
@@ -163,6 +186,7 @@ impl EvalProtocol {
             ))),
             (_, Some(_)) => bail!("--bbox-type is for --protocol bop22-det only"),
             (EvalProtocol::Segmentation, None) => Ok(Resolved::Coco(CocoTask::Segmentation)),
+            (EvalProtocol::Bop24, None) => Ok(Resolved::Bop24),
             (EvalProtocol::Pose(name), None) => Ok(Resolved::Pose(name)),
         }
     }
@@ -171,8 +195,12 @@ impl EvalProtocol {
 pub fn run_eval(args: EvalArgs) -> Result<()> {
     let name = match args.protocol.resolve(args.bbox_type)? {
         Resolved::Pose(name) => name,
+        Resolved::Bop24 => return run_bop24_eval(&args),
         Resolved::Coco(task) => return run_coco_eval(&args, task),
     };
+    if args.max_estimates_per_image.is_some() {
+        bail!("--max-estimates-per-image is for --protocol bop24 only");
+    }
     if args
         .results
         .extension()
@@ -208,20 +236,134 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// `eval` for BOP'24 6D detection: average precision over the target images of
+/// `test_targets_bop24.json` (or `--targets-file`).
+fn run_bop24_eval(args: &EvalArgs) -> Result<()> {
+    if args.overrides.any() || args.errors_out.is_some() {
+        bail!(
+            "bop24 has fixed errors and thresholds: the options of the localization protocols \
+             (--tau, --n-top, --errors-out, ...) do not apply"
+        );
+    }
+    if args
+        .results
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        bail!(
+            "{} is a BOP'22 JSON file: bop24 reads BOP'19 CSV result files",
+            args.results.display()
+        );
+    }
+    let dataset = load_bop24_dataset(&args.dataset, &args.results, &args.split)?;
+    let results = load_results(&args.results)?;
+    let cap = args
+        .max_estimates_per_image
+        .unwrap_or_else(|| detection::default_max_estimates_per_image(&dataset.name));
+    let pool = worker_pool(args.threads)?;
+    let bar = Bar::new();
+    let report = pool
+        .install(|| detection::evaluate(&dataset, &results, cap, &bar, &AtomicBool::new(false)))
+        .context("evaluation failed")?;
+    bar.finish();
+    print!("{}", bop24_table(&report));
+    if let Some(out) = &args.out {
+        write_json(out, &report)?;
+    }
+    Ok(())
+}
+
+/// The dataset for bop24: its targets file is `test_targets_bop24.json` unless
+/// `--targets-file` names another (a folder's `poseboard-dataset.json` chooses the
+/// localization targets, not these).
+fn load_bop24_dataset(dir: &Path, results: &Path, split: &SplitArgs) -> Result<Dataset> {
+    let dir = dataset_dir(dir, results)?;
+    let mut options = dataset_options(&dir, split)?;
+    options.targets_file = split
+        .targets_file
+        .clone()
+        .unwrap_or_else(|| BOP24_TARGETS.to_string());
+    Dataset::load_with(&dir, &options)
+        .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))
+}
+
+/// The targets file of BOP'24 6D detection.
+const BOP24_TARGETS: &str = "test_targets_bop24.json";
+
+/// The bop24 scores with the toolkit's names, and the per-object AP, for the terminal.
+pub fn bop24_table(r: &DetectionReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "dataset {}  protocol {}  estimates {} (evaluated {}, ignored {}, beyond the cap of {} \
+         per image {})",
+        r.dataset,
+        r.protocol,
+        r.estimates_count,
+        r.estimates_evaluated,
+        r.estimates_ignored,
+        r.parameters.max_estimates_per_image,
+        r.estimates_beyond_cap
+    );
+    let _ = writeln!(
+        s,
+        "target images {}  instances {} ({} at least {} % visible)",
+        r.target_images,
+        r.instances,
+        r.instances_counted,
+        r.parameters.visib_gt_min * 100.0
+    );
+    for (name, v) in [
+        ("bop24_mAP", r.bop24_map),
+        ("bop24_mAP_mssd", r.bop24_map_mssd),
+        ("bop24_mAP_mspd", r.bop24_map_mspd),
+        ("bop24_mAP_mssd_mm", r.bop24_map_mssd_mm),
+        ("bop25_mAP", r.bop25_map),
+        ("bop25_mAP_mm", r.bop25_map_mm),
+    ] {
+        let _ = writeln!(s, "{name:>18}  {v:.4}");
+    }
+    let _ = writeln!(
+        s,
+        "{:>8}  {:>8}  {:>8}  {:>8}",
+        "object", "mssd", "mssd_mm", "mspd"
+    );
+    if let Some(first) = r.errors.first() {
+        for (i, o) in first.objects.iter().enumerate() {
+            let ap = |e: usize| {
+                r.errors
+                    .get(e)
+                    .and_then(|x| x.objects.get(i))
+                    .map_or(f64::NAN, |x| x.ap)
+            };
+            let _ = writeln!(
+                s,
+                "{:>8}  {:>8.4}  {:>8.4}  {:>8.4}",
+                o.obj_id,
+                ap(0),
+                ap(1),
+                ap(2)
+            );
+        }
+    }
+    if r.bop24_average_time_per_image >= 0.0 {
+        let _ = writeln!(
+            s,
+            "average time per image: {:.3} s",
+            r.bop24_average_time_per_image
+        );
+    }
+    s
+}
+
 /// `eval` for the BOP'22 2D tasks: COCOeval on the dataset's `scene_gt_coco*.json`.
 fn run_coco_eval(args: &EvalArgs, task: CocoTask) -> Result<()> {
     let o = &args.overrides;
-    if o.visib_mode.is_some()
-        || o.tau.is_some()
-        || o.tau_normalized.is_some()
-        || o.theta.is_some()
-        || o.delta.is_some()
-        || o.n_top.is_some()
-        || o.visib_gt_min.is_some()
-        || o.max_sym_disc_step.is_some()
-        || !o.extra_errors.is_empty()
-        || args.errors_out.is_some()
-    {
+    if args.max_estimates_per_image.is_some() {
+        bail!("--max-estimates-per-image is for --protocol bop24 only");
+    }
+    if o.any() || args.errors_out.is_some() {
         bail!(
             "{} has no pose errors: the 6D options (--tau, --n-top, --errors-out, ...) do not apply",
             task.name()
@@ -300,6 +442,9 @@ pub struct CheckArgs {
     /// With --dataset and bop22-det: the ground-truth boxes to report coverage against.
     #[arg(long)]
     pub bbox_type: Option<BboxType>,
+    /// With --dataset and bop24: estimates kept per image (default: the toolkit's).
+    #[arg(long)]
+    pub max_estimates_per_image: Option<usize>,
     /// A dataset to report coverage against (targets without estimates, ignored estimates):
     /// a dataset folder or a folder of datasets, as for `eval`.
     #[arg(long)]
@@ -337,8 +482,15 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         .results
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if args.max_estimates_per_image.is_some() && !matches!(resolved, Some(Resolved::Bop24)) {
+        bail!("--max-estimates-per-image is for --protocol bop24 only");
+    }
     match resolved {
         Some(Resolved::Coco(task)) => return run_coco_check(&args, Some(task)),
+        Some(Resolved::Bop24) if is_json => bail!(
+            "{} is a JSON file: bop24 reads BOP'19 CSV result files",
+            args.results.display()
+        ),
         None if is_json => return run_coco_check(&args, None),
         Some(Resolved::Pose(_)) if is_json => bail!(
             "{} is a JSON file: the 6D protocols read BOP'19 CSV result files",
@@ -350,6 +502,9 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         _ => {}
     }
     let results = load_results(&args.results)?;
+    if matches!(resolved, Some(Resolved::Bop24)) {
+        return run_bop24_check(&args, &results);
+    }
     let images = results.image_times.len().max(
         results
             .estimates
@@ -398,6 +553,46 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
             count(n, "red flag", "red flags")
         ),
     }
+}
+
+/// `check-results --protocol bop24`: the file is valid (times included: one image, one time);
+/// with a dataset, what of its target images the file covers and which estimates would not
+/// count. Estimates of absent objects are expected in detection, so nothing is a red flag.
+fn run_bop24_check(args: &CheckArgs, results: &evaluator::Results) -> Result<()> {
+    let images: std::collections::BTreeSet<(u32, u32)> = results
+        .estimates
+        .iter()
+        .map(|e| (e.scene_id, e.im_id))
+        .collect();
+    println!(
+        "{}: {} for {}: a valid result file for bop24",
+        args.results.display(),
+        count(results.estimates.len(), "estimate", "estimates"),
+        count(images.len(), "image", "images"),
+    );
+    let Some(dir) = &args.dataset else {
+        println!("no --dataset given: coverage not checked");
+        return Ok(());
+    };
+    let dataset = load_bop24_dataset(dir, &args.results, &args.split)?;
+    let cap = args
+        .max_estimates_per_image
+        .unwrap_or_else(|| detection::default_max_estimates_per_image(&dataset.name));
+    let c = detection::coverage(&dataset, results, cap);
+    println!(
+        "{}: {}, {} without an estimate of an object it holds",
+        dataset.name,
+        count(c.target_images, "target image", "target images"),
+        c.images_without_estimate,
+    );
+    println!(
+        "{} beyond the cap of {cap} per image; {} of objects absent from their image or of \
+         images that are not targets (neither true nor false positives); {} scored",
+        count(c.estimates_beyond_cap, "estimate", "estimates"),
+        c.estimates_ignored,
+        c.estimates_evaluated,
+    );
+    Ok(())
 }
 
 /// `check-results` for a BOP'22 JSON file: every problem named by entry and key, the tasks the

@@ -1,0 +1,212 @@
+//! From errors to true and false positives, and to average precision per object: the greedy
+//! matching of each image and object at each threshold, then the ranking of every estimate of
+//! an object over all images by score, as bop_toolkit's `pose_matching.match_poses` and
+//! `score.calc_pose_detection_scores` do.
+
+use std::cmp::Ordering;
+use std::collections::BTreeMap;
+
+use crate::dataset::Dataset;
+use crate::stats;
+
+use super::ap::{self, RECALL_POINTS};
+use super::image_errors::{EstimateErrors, ImageErrors};
+use super::{DetectionError, ErrorScores, ObjectAp, VISIB_GT_MIN};
+
+/// Where an estimate is: (image, object within the image, estimate within the object).
+type Place = (usize, usize, usize);
+
+/// The order of every object's estimates, and its counted instances; the same at every
+/// threshold, so computed once.
+pub struct Ranking {
+    /// Per object with a counted instance: its estimates over all target images in decreasing
+    /// score, ties in the toolkit's order (images as listed, objects by first instance, then
+    /// the order within the image and object).
+    order: BTreeMap<u32, Vec<Place>>,
+    /// Per object: instances at least [`VISIB_GT_MIN`] visible (only objects with some).
+    counted: BTreeMap<u32, usize>,
+    instances: usize,
+}
+
+/// What an estimate is at one threshold.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Outcome {
+    TruePositive,
+    FalsePositive,
+    /// Matched to an instance too little visible to count: neither.
+    Ignored,
+}
+
+impl Ranking {
+    pub fn new(dataset: &Dataset, images: &[ImageErrors]) -> Self {
+        let mut counted: BTreeMap<u32, usize> = BTreeMap::new();
+        let mut instances = 0;
+        let mut scored: BTreeMap<u32, Vec<(f64, Place)>> = BTreeMap::new();
+        for (i, im) in images.iter().enumerate() {
+            let image = &dataset.scenes[&im.scene_id].images[&im.im_id];
+            for (o, obj) in im.objects.iter().enumerate() {
+                instances += obj.gt_ids.len();
+                let visible = obj
+                    .gt_ids
+                    .iter()
+                    .filter(|&&g| image.gt[g].visib_fract >= VISIB_GT_MIN)
+                    .count();
+                if visible > 0 {
+                    *counted.entry(obj.obj_id).or_default() += visible;
+                }
+                let list = scored.entry(obj.obj_id).or_default();
+                list.extend(
+                    obj.estimates
+                        .iter()
+                        .enumerate()
+                        .map(|(e, est)| (est.score, (i, o, e))),
+                );
+            }
+        }
+        let order = scored
+            .into_iter()
+            .filter(|(obj_id, _)| counted.contains_key(obj_id))
+            .map(|(obj_id, mut list)| {
+                // Stable: equal scores keep the order they were gathered in.
+                list.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(Ordering::Equal));
+                (obj_id, list.into_iter().map(|(_, place)| place).collect())
+            })
+            .collect();
+        Ranking {
+            order,
+            counted,
+            instances,
+        }
+    }
+
+    /// Ground-truth instances in the target images.
+    pub fn instances(&self) -> usize {
+        self.instances
+    }
+
+    /// Instances visible enough to be counted.
+    pub fn instances_counted(&self) -> usize {
+        self.counted.values().sum()
+    }
+
+    /// Per-object AP at each of `error`'s thresholds, their means and the mean curve.
+    pub fn scores(
+        &self,
+        dataset: &Dataset,
+        images: &[ImageErrors],
+        error: DetectionError,
+    ) -> ErrorScores {
+        let thresholds = error.thresholds();
+        let width = f64::from(dataset.image_size.0);
+        let normalised = |obj_id: u32, e: &EstimateErrors, i: usize| match error {
+            DetectionError::Mssd => e.mssd[i] / dataset.objects[&obj_id].info.diameter,
+            DetectionError::MssdMm => e.mssd[i],
+            DetectionError::Mspd => 640.0 / width * e.mspd[i],
+        };
+        let mut curves: BTreeMap<u32, Vec<[f64; RECALL_POINTS]>> = BTreeMap::new();
+        for &threshold in &thresholds {
+            let outcomes = outcomes(dataset, images, threshold, &normalised);
+            for (obj_id, order) in &self.order {
+                let ranked: Vec<bool> = order
+                    .iter()
+                    .map(|&(i, o, e)| outcomes[i][o][e])
+                    .filter(|&x| x != Outcome::Ignored)
+                    .map(|x| x == Outcome::TruePositive)
+                    .collect();
+                curves
+                    .entry(*obj_id)
+                    .or_default()
+                    .push(ap::interpolated_precision(&ranked, self.counted[obj_id]));
+            }
+        }
+        let objects: Vec<ObjectAp> = curves
+            .iter()
+            .map(|(&obj_id, per_threshold)| {
+                let ap_per_threshold: Vec<f64> =
+                    per_threshold.iter().map(ap::average_precision).collect();
+                ObjectAp {
+                    obj_id,
+                    instances: self.counted[&obj_id],
+                    ap: stats::mean(&ap_per_threshold),
+                    ap_per_threshold,
+                }
+            })
+            .collect();
+        // The toolkit averages over objects in the order of their ids as strings ("10" before
+        // "2"), which it reads back from JSON keys.
+        let mut by_name: Vec<&ObjectAp> = objects.iter().collect();
+        by_name.sort_by_key(|o| o.obj_id.to_string());
+        let map = stats::mean(&by_name.iter().map(|o| o.ap).collect::<Vec<_>>());
+        let precision_recall = if curves.is_empty() {
+            Vec::new()
+        } else {
+            (0..RECALL_POINTS)
+                .map(|p| {
+                    let per_object: Vec<f64> = curves
+                        .values()
+                        .map(|c| stats::mean(&c.iter().map(|curve| curve[p]).collect::<Vec<_>>()))
+                        .collect();
+                    stats::mean(&per_object)
+                })
+                .collect()
+        };
+        ErrorScores {
+            error,
+            thresholds,
+            map,
+            objects,
+            precision_recall,
+        }
+    }
+}
+
+/// Every estimate's outcome at one threshold, indexed like the errors: the greedy matching
+/// of each image and object (estimates in decreasing score take the unmatched instance with
+/// the lowest error strictly below the threshold, the first such instance on ties).
+fn outcomes(
+    dataset: &Dataset,
+    images: &[ImageErrors],
+    threshold: f64,
+    normalised: &impl Fn(u32, &EstimateErrors, usize) -> f64,
+) -> Vec<Vec<Vec<Outcome>>> {
+    images
+        .iter()
+        .map(|im| {
+            let image = &dataset.scenes[&im.scene_id].images[&im.im_id];
+            im.objects
+                .iter()
+                .map(|obj| {
+                    let mut matched = vec![false; obj.gt_ids.len()];
+                    obj.estimates
+                        .iter()
+                        .map(|est| {
+                            let mut best: Option<usize> = None;
+                            let mut best_error = threshold;
+                            for i in 0..obj.gt_ids.len() {
+                                if matched[i] {
+                                    continue;
+                                }
+                                let e = normalised(obj.obj_id, est, i);
+                                if e < best_error {
+                                    best = Some(i);
+                                    best_error = e;
+                                }
+                            }
+                            match best {
+                                None => Outcome::FalsePositive,
+                                Some(i) => {
+                                    matched[i] = true;
+                                    if image.gt[obj.gt_ids[i]].visib_fract >= VISIB_GT_MIN {
+                                        Outcome::TruePositive
+                                    } else {
+                                        Outcome::Ignored
+                                    }
+                                }
+                            }
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
