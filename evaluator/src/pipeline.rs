@@ -332,9 +332,8 @@ impl Context<'_> {
                 let pose = &self.results.estimates[idx].pose;
                 renderer.render_model(model, pose, &image.camera, w, h)
             });
-            if !renders.gts.contains_key(&gi) {
-                let r = gt_render(&mut renderer, model, gi)?;
-                renders.gts.insert(gi, r);
+            if let std::collections::hash_map::Entry::Vacant(slot) = renders.gts.entry(gi) {
+                slot.insert(gt_render(&mut renderer, model, gi)?);
             }
         }
         Ok(renders)
@@ -343,7 +342,7 @@ impl Context<'_> {
     /// The test image and the renders of `pairs` (found at `size`), from the dataset: the
     /// depth image is decoded only down to the last row a render covers (see `DepthPng`); its
     /// header comes first, as the renders must be made at its size.
-    fn from_dataset(
+    fn read_dataset(
         &self,
         work: &ImageWork,
         image: &Image,
@@ -368,7 +367,7 @@ impl Context<'_> {
 
     /// The same from a prepared image: its depth bands and ground-truth renders are read, not
     /// computed.
-    fn from_prepared(
+    fn read_prepared(
         &self,
         prepared: &PreparedImage,
         work: &ImageWork,
@@ -401,13 +400,13 @@ impl Context<'_> {
             let from_prepared = self.prepared.and_then(|prepared| {
                 prepared
                     .image(work.scene_id, work.im_id)
-                    .and_then(|p| self.from_prepared(&p, work, image, size, pairs.clone()))
+                    .and_then(|p| self.read_prepared(&p, work, image, size, pairs.clone()))
                     .map_err(|problem| prepared.note_damaged(problem))
                     .ok()
             });
             let (test, renders) = match from_prepared {
                 Some(done) => done,
-                None => self.from_dataset(work, image, size, pairs)?,
+                None => self.read_dataset(work, image, size, pairs)?,
             };
             (Some(test), renders)
         };
