@@ -7,7 +7,7 @@
 //! images, masks and other splits are left out: they are most of a BOP download and change no
 //! score. The files are hashed in parallel, so a real test split (hundreds of MB of depth
 //! images) takes about a second; it is computed when the server registers a dataset and when a
-//! worker first needs it, and it keys a prepared dataset ([`crate::prepared`]).
+//! worker first needs it, and it keys a prepared dataset.
 
 use std::io::Read;
 use std::path::Path;

@@ -23,6 +23,7 @@ pub mod pipeline;
 pub mod ply;
 pub mod pose_error;
 pub mod prepared;
+pub mod progress;
 pub mod protocol;
 pub mod render;
 pub mod report;

@@ -23,20 +23,7 @@ use crate::results::Results;
 use crate::score::{ScoredImage, Scores, localization_scores};
 use crate::selection::{ImageWork, select_estimates};
 
-/// Told how much work there is and how much is done; the CLI draws a bar, the service stores
-/// a percentage.
-pub trait Progress: Sync {
-    fn start(&self, total_estimates: u64);
-    fn advance(&self, estimates: u64);
-}
-
-/// For callers that do not follow progress.
-pub struct NoProgress;
-
-impl Progress for NoProgress {
-    fn start(&self, _: u64) {}
-    fn advance(&self, _: u64) {}
-}
+pub use crate::progress::{NoProgress, Progress};
 
 /// Everything an evaluation computed: the report, and the raw errors behind it.
 pub struct Evaluation {

@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 use crate::content_hash::content_hash;
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
-use crate::pipeline::Progress;
+use crate::progress::Progress;
 use crate::render::{DepthWindow, Model, Renderer};
 use file::{FORMAT, ImageData, PreparedImage, Stamp, evaluator_version};
 
@@ -88,7 +88,7 @@ impl fmt::Display for Unusable {
 }
 
 /// A prepared form found current for one dataset content, to evaluate with
-/// ([`crate::pipeline::evaluate_prepared`]).
+/// (`evaluate_prepared`).
 #[derive(Debug)]
 pub struct Prepared {
     dir: PathBuf,
