@@ -1,4 +1,4 @@
-//! How long work reports its progress: an evaluation counts estimates, a dataset's preparation
+//! Long work reports its progress: an evaluation counts estimates, a dataset's preparation
 //! images; the CLI draws a bar, the service stores a percentage.
 
 /// Told how much work there is and how much is done.
