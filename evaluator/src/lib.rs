@@ -9,6 +9,7 @@
 
 pub mod bootstrap;
 pub mod coco;
+pub mod content_hash;
 pub mod dataset;
 pub mod depth_files;
 mod depth_png;
@@ -23,6 +24,8 @@ pub mod overlay;
 pub mod pipeline;
 pub mod ply;
 pub mod pose_error;
+pub mod prepared;
+pub mod progress;
 pub mod protocol;
 pub mod render;
 pub mod report;
@@ -36,7 +39,8 @@ pub mod visibility;
 
 pub use dataset::Dataset;
 pub use error::{Error, Result};
-pub use pipeline::{Evaluation, NoProgress, Progress, evaluate};
+pub use pipeline::{Evaluation, NoProgress, Progress, evaluate, evaluate_prepared};
+pub use prepared::Prepared;
 pub use protocol::{Protocol, ProtocolName};
 pub use report::Report;
 pub use results::Results;

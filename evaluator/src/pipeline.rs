@@ -14,6 +14,8 @@ use crate::matching::{EstimateErrors, valid_gts};
 use crate::math::Pose;
 use crate::pose_error::vsd::{GtView, TestImage, vsd};
 use crate::pose_error::{self, sphere_projections_overlap, spheres_overlap};
+use crate::prepared::Prepared;
+use crate::prepared::file::PreparedImage;
 use crate::protocol::{Column, ErrorKind, Protocol, columns, normalised_error};
 use crate::render::{DepthWindow, Model, PixelBox, Renderer, screen_box};
 use crate::report::{self, Report};
@@ -22,20 +24,7 @@ use crate::score::{ScoredImage, Scores, localization_scores};
 use crate::selection::{ImageWork, select_estimates};
 use crate::supported_errors;
 
-/// Told how much work there is and how much is done; the CLI draws a bar, the service stores
-/// a percentage.
-pub trait Progress: Sync {
-    fn start(&self, total_estimates: u64);
-    fn advance(&self, estimates: u64);
-}
-
-/// For callers that do not follow progress.
-pub struct NoProgress;
-
-impl Progress for NoProgress {
-    fn start(&self, _: u64) {}
-    fn advance(&self, _: u64) {}
-}
+pub use crate::progress::{NoProgress, Progress};
 
 /// Everything an evaluation computed: the report, and the raw errors behind it.
 pub struct Evaluation {
@@ -111,6 +100,21 @@ pub fn evaluate(
     progress: &dyn Progress,
     cancel: &AtomicBool,
 ) -> Result<Evaluation> {
+    evaluate_prepared(dataset, results, protocol, None, progress, cancel)
+}
+
+/// [`evaluate`], reading each image's depth and ground-truth renders from `prepared` (opened
+/// for this dataset's content) instead of computing them; the scores are the same bit for bit.
+/// An image whose prepared file is refused is computed from the dataset, and the file is
+/// recorded in [`Prepared::damaged`].
+pub fn evaluate_prepared(
+    dataset: &Dataset,
+    results: &Results,
+    protocol: &Protocol,
+    prepared: Option<&Prepared>,
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+) -> Result<Evaluation> {
     protocol.validate().map_err(Error::Parameters)?;
     supported_errors::check_errors(dataset, protocol)?;
     if dataset.targets_form == TargetsForm::Images {
@@ -134,6 +138,7 @@ pub fn evaluate(
         protocol,
         columns: &columns,
         objects: &objects,
+        prepared,
     };
     let per_image: Vec<Vec<EstimateErrors>> = selection
         .images
@@ -238,6 +243,7 @@ struct Context<'a> {
     protocol: &'a Protocol,
     columns: &'a [Column],
     objects: &'a ObjectData,
+    prepared: Option<&'a Prepared>,
 }
 
 /// The renders VSD needs in one image, made before the test depth image is available.
@@ -306,13 +312,15 @@ impl Context<'_> {
         pairs
     }
 
-    /// Renders each estimate and ground truth of `pairs` once.
-    fn render_pairs(
+    /// Renders each estimate of `pairs` once, and takes each ground truth's render from
+    /// `gt_render` (which renders it, or reads it from a prepared file).
+    fn render_pairs<E>(
         &self,
         pairs: &[(u32, usize, usize)],
         image: &Image,
         size: (u32, u32),
-    ) -> ImageRenders {
+        mut gt_render: impl FnMut(&mut Renderer, &Model, usize) -> std::result::Result<DepthWindow, E>,
+    ) -> std::result::Result<ImageRenders, E> {
         let mut renders = ImageRenders::default();
         let mut renderer = Renderer::new();
         let (w, h) = size;
@@ -323,11 +331,58 @@ impl Context<'_> {
                 let pose = &self.results.estimates[idx].pose;
                 renderer.render_model(model, pose, &image.camera, w, h)
             });
-            renders.gts.entry(gi).or_insert_with(|| {
-                renderer.render_model(model, &image.gt[gi].pose, &image.camera, w, h)
-            });
+            if let std::collections::hash_map::Entry::Vacant(slot) = renders.gts.entry(gi) {
+                slot.insert(gt_render(&mut renderer, model, gi)?);
+            }
         }
-        renders
+        Ok(renders)
+    }
+
+    /// The test image and the renders of `pairs` (found at `size`), from the dataset: the
+    /// depth image is decoded only down to the last row a render covers (see `DepthPng`); its
+    /// header comes first, as the renders must be made at its size.
+    fn read_dataset(
+        &self,
+        work: &ImageWork,
+        image: &Image,
+        size: (u32, u32),
+        pairs: Vec<(u32, usize, usize)>,
+    ) -> Result<(TestImage, ImageRenders)> {
+        let png = self.dataset.open_depth(work.scene_id, work.im_id)?;
+        let actual = png.size();
+        // A depth image of another size than the camera files state: render at its size.
+        let pairs = if actual == size {
+            pairs
+        } else {
+            self.vsd_pairs(work, image, actual)
+        };
+        let (w, h) = actual;
+        let renders = self.render_pairs(&pairs, image, actual, |renderer, model, gi| {
+            Ok::<_, Error>(renderer.render_model(model, &image.gt[gi].pose, &image.camera, w, h))
+        })?;
+        let test = TestImage::from_rows(png.read_rows(renders.rows())?, &image.camera);
+        Ok((test, renders))
+    }
+
+    /// The same from a prepared image: its depth bands and ground-truth renders are read, not
+    /// computed.
+    fn read_prepared(
+        &self,
+        prepared: &PreparedImage,
+        work: &ImageWork,
+        image: &Image,
+        size: (u32, u32),
+        pairs: Vec<(u32, usize, usize)>,
+    ) -> std::result::Result<(TestImage, ImageRenders), String> {
+        let actual = prepared.size();
+        let pairs = if actual == size {
+            pairs
+        } else {
+            self.vsd_pairs(work, image, actual)
+        };
+        let renders = self.render_pairs(&pairs, image, actual, |_, _, gi| prepared.gt(gi))?;
+        let test = TestImage::from_rows(prepared.rows(renders.rows())?, &image.camera);
+        Ok((test, renders))
     }
 
     fn image_errors(&self, work: &ImageWork) -> Result<Vec<EstimateErrors>> {
@@ -337,23 +392,21 @@ impl Context<'_> {
             Some(_) => self.vsd_pairs(work, image, size),
             None => Vec::new(),
         };
-        // The depth image is decoded only when some pair needs it, and only down to the last
-        // row a render covers (see `DepthPng`); its header comes first, as the renders must
-        // be made at its size.
+        // The depth image is read only when some pair needs it.
         let (test, mut renders) = if pairs.is_empty() {
             (None, ImageRenders::default())
         } else {
-            let png = self.dataset.open_depth(work.scene_id, work.im_id)?;
-            let actual = png.size();
-            let renders = if actual == size {
-                self.render_pairs(&pairs, image, size)
-            } else {
-                // A depth image of another size than the camera files state: render at its
-                // size.
-                let pairs = self.vsd_pairs(work, image, actual);
-                self.render_pairs(&pairs, image, actual)
+            let from_prepared = self.prepared.and_then(|prepared| {
+                prepared
+                    .image(work.scene_id, work.im_id)
+                    .and_then(|p| self.read_prepared(&p, work, image, size, pairs.clone()))
+                    .map_err(|problem| prepared.note_damaged(problem))
+                    .ok()
+            });
+            let (test, renders) = match from_prepared {
+                Some(done) => done,
+                None => self.read_dataset(work, image, size, pairs)?,
             };
-            let test = TestImage::from_rows(png.read_rows(renders.rows())?, &image.camera);
             (Some(test), renders)
         };
         let mut pts_scratch = Vec::new();

@@ -13,7 +13,7 @@ use evaluator::dataset::DatasetOptions;
 use evaluator::detection;
 use evaluator::{Dataset, Error, Evaluation, Progress, results};
 use pyo3::exceptions::{
-    PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
+    PyFileNotFoundError, PyOSError, PyPermissionError, PyRuntimeError, PyUserWarning, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
@@ -235,7 +235,7 @@ fn error(e: &Error, context: String) -> PyErr {
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (
     dataset, protocol, *, results_path=None, results_csv=None, threads=None, progress=None,
-    with_errors=false, visib_mode=None, tau=None, tau_normalized=None, theta=None, delta=None,
+    with_errors=false, prepared=None, unprepared=false, visib_mode=None, tau=None, tau_normalized=None, theta=None, delta=None,
     n_top=None, visib_gt_min=None, max_sym_disc_step=None, extra_errors=Vec::new(),
     ad_threshold=0.1, max_estimates_per_image=None,
 ))]
@@ -248,6 +248,8 @@ pub fn evaluate(
     threads: Option<usize>,
     progress: Option<Bound<'_, PyAny>>,
     with_errors: bool,
+    prepared: Option<PathBuf>,
+    unprepared: bool,
     visib_mode: Option<String>,
     tau: Option<Vec<f64>>,
     tau_normalized: Option<bool>,
@@ -320,14 +322,41 @@ pub fn evaluate(
                 .map_err(|e| Failure::Threads(format!("cannot start the worker threads: {e}")))?;
             match &task {
                 Task::Localization(protocol) => {
+                    let mut notes = Vec::new();
+                    let prepared = if unprepared {
+                        None
+                    } else {
+                        pool.install(|| evaluator::prepared::find(&dataset, prepared.as_deref()))
+                            .unwrap_or_else(|why| {
+                                notes.push(format!(
+                                    "{why}; `poseboard dataset prepare {}` rebuilds it",
+                                    dataset.root.display()
+                                ));
+                                None
+                            })
+                    };
                     let evaluation = pool
                         .install(|| {
-                            evaluator::evaluate(&dataset, &results, protocol, progress, cancel)
+                            evaluator::evaluate_prepared(
+                                &dataset,
+                                &results,
+                                protocol,
+                                prepared.as_ref(),
+                                progress,
+                                cancel,
+                            )
                         })
                         .map_err(Failure::Evaluation)?;
+                    if let Some(prepared) = &prepared {
+                        notes.extend(prepared.damaged().into_iter().map(|problem| {
+                            format!(
+                                "prepared file refused, its image computed from the dataset: {problem}"
+                            )
+                        }));
+                    }
                     let report = serde_json::to_string_pretty(&evaluation.report)
                         .expect("a report serialises");
-                    Ok((report, with_errors.then(|| errors_json(&evaluation))))
+                    Ok((report, with_errors.then(|| errors_json(&evaluation)), notes))
                 }
                 Task::Bop24(cap) => {
                     let cap = cap.unwrap_or_else(|| {
@@ -338,12 +367,18 @@ pub fn evaluate(
                         .map_err(Failure::Evaluation)?;
                     let report =
                         serde_json::to_string_pretty(&report).expect("a report serialises");
-                    Ok((report, None))
+                    Ok((report, None, Vec::new()))
                 }
             }
         },
     )?;
-    outcome.map_err(|f| f.into_py(py))
+    let (report, errors, notes) = outcome.map_err(|f| f.into_py(py))?;
+    // A prepared form that could not be used only made the evaluation slower: a warning.
+    for note in notes {
+        let message = std::ffi::CString::new(note.replace('\0', " ")).expect("no NUL left");
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+    }
+    Ok((report, errors))
 }
 
 /// What `evaluate` runs: a localization protocol, or BOP'24 detection with its cap.

@@ -2,6 +2,7 @@
 
 pub mod copy_db;
 pub mod eval;
+pub mod prepare;
 pub mod service;
 pub mod submit;
 

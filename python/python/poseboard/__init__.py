@@ -189,6 +189,8 @@ def _evaluate_json(
     threads: Optional[int] = None,
     progress: Optional[Callable[[int, int], Any]] = None,
     with_errors: bool = False,
+    prepared: Optional[PathLike] = None,
+    unprepared: bool = False,
     visib_mode: Optional[str] = None,
     tau: Union[float, Sequence[float], None] = None,
     tau_normalized: Optional[bool] = None,
@@ -214,6 +216,8 @@ def _evaluate_json(
         threads=threads,
         progress=progress,
         with_errors=with_errors,
+        prepared=None if prepared is None else os.fspath(prepared),
+        unprepared=unprepared,
         visib_mode=visib_mode,
         tau=_floats_list(tau),
         tau_normalized=tau_normalized,
@@ -237,6 +241,8 @@ def evaluate(
     *,
     threads: Optional[int] = None,
     progress: Optional[Callable[[int, int], Any]] = None,
+    prepared: Optional[PathLike] = None,
+    unprepared: bool = False,
     visib_mode: Optional[str] = None,
     tau: Union[float, Sequence[float], None] = None,
     tau_normalized: Optional[bool] = None,
@@ -269,6 +275,11 @@ def evaluate(
     :param progress: called as ``progress(done, total)`` (estimates) from the calling thread
         while the evaluation runs, and once at its end. An exception it raises (and Ctrl-C)
         stops the evaluation and is raised here.
+    :param prepared: the dataset's prepared form (``poseboard dataset prepare``); by default
+        the dataset's ``poseboard_prepared`` folder when there is one. Scores are the same to
+        the bit without it; one that is stale, made for other content or damaged is not used
+        (a UserWarning says why).
+    :param unprepared: compute everything from the dataset even when a prepared form is there.
     :param visib_mode: VSD visibility, ``"bop18"`` (missing depth hides) or ``"bop19"``
         (missing depth shows).
     :param tau: VSD misalignment tolerance(s): mm, or fractions of the diameter when
@@ -300,6 +311,8 @@ def evaluate(
         protocol,
         threads=threads,
         progress=progress,
+        prepared=prepared,
+        unprepared=unprepared,
         visib_mode=visib_mode,
         tau=tau,
         tau_normalized=tau_normalized,

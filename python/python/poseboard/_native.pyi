@@ -34,6 +34,8 @@ def evaluate(
     threads: Optional[int] = None,
     progress: Optional[Callable[[int, int], object]] = None,
     with_errors: bool = False,
+    prepared: Optional[str] = None,
+    unprepared: bool = False,
     visib_mode: Optional[str] = None,
     tau: Optional[list[float]] = None,
     tau_normalized: Optional[bool] = None,

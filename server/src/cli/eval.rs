@@ -18,7 +18,7 @@ use evaluator::dataset::DatasetOptions;
 use evaluator::detection::{self, DetectionReport};
 use evaluator::protocol::{ErrorKind, Overrides, ProtocolName};
 use evaluator::visibility::VisibMode;
-use evaluator::{Dataset, Progress, Protocol, Report, evaluate, results};
+use evaluator::{Dataset, Progress, Protocol, Report, evaluate_prepared, results};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::dataset_config::{SplitChoice, folder_choice};
@@ -59,6 +59,13 @@ pub struct EvalArgs {
     /// Worker threads (default: every core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// The dataset's prepared form (`poseboard dataset prepare`); default: the dataset's
+    /// `poseboard_prepared` folder when there is one. Scores are the same without it.
+    #[arg(long, conflicts_with = "unprepared")]
+    pub prepared: Option<PathBuf>,
+    /// Compute everything from the dataset, even when a prepared form is there.
+    #[arg(long)]
+    pub unprepared: bool,
     #[command(flatten)]
     pub overrides: OverrideArgs,
 }
@@ -219,11 +226,25 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
     let results = load_results(&args.results)?;
 
     let pool = worker_pool(args.threads)?;
+    let prepared =
+        pool.install(|| super::prepare::find(&dataset, args.prepared.as_deref(), args.unprepared));
     let bar = Bar::new();
     let evaluation = pool
-        .install(|| evaluate(&dataset, &results, &protocol, &bar, &AtomicBool::new(false)))
+        .install(|| {
+            evaluate_prepared(
+                &dataset,
+                &results,
+                &protocol,
+                prepared.as_ref(),
+                &bar,
+                &AtomicBool::new(false),
+            )
+        })
         .context("evaluation failed")?;
     bar.finish();
+    if let Some(prepared) = &prepared {
+        super::prepare::report_damaged(prepared, &dataset);
+    }
 
     print_scores(&evaluation.report);
     if let Some(out) = &args.out {
@@ -390,7 +411,7 @@ fn run_coco_eval(args: &EvalArgs, task: CocoTask) -> Result<()> {
     Ok(())
 }
 
-fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+pub(crate) fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
         pool = pool.num_threads(n);
@@ -692,7 +713,7 @@ fn dataset_dir(dir: &Path, results: &Path) -> Result<PathBuf> {
 
 /// The split and targets file: the flags over the folder's `poseboard-dataset.json` and the
 /// defaults.
-fn dataset_options(dir: &Path, split: &SplitArgs) -> Result<DatasetOptions> {
+pub(crate) fn dataset_options(dir: &Path, split: &SplitArgs) -> Result<DatasetOptions> {
     Ok(SplitChoice {
         split: split.split.clone(),
         split_type: split.split_type.clone(),

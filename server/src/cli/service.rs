@@ -59,6 +59,10 @@ pub enum DatasetCommand {
         #[arg(long, value_parser = parse_size)]
         size: Option<(u32, u32)>,
     },
+    /// Compute once what scoring needs of DIR whatever the result file (decoded depth,
+    /// ground-truth renders), for `poseboard eval` and the Python package to read; checks and
+    /// repairs an existing prepared form.
+    Prepare(super::prepare::PrepareArgs),
     /// Write the demo result files (precise, noisy, rough) for a synthetic dataset into OUT.
     DemoResults {
         dataset: PathBuf,
@@ -206,6 +210,7 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             println!("wrote a synthetic BOP dataset to {}", dir.display());
             Ok(())
         }
+        DatasetCommand::Prepare(args) => super::prepare::run(args),
         DatasetCommand::DemoResults {
             dataset,
             out,
