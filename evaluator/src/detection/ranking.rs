@@ -182,8 +182,8 @@ fn outcomes(
                         .map(|est| {
                             let mut best: Option<usize> = None;
                             let mut best_error = threshold;
-                            for i in 0..obj.gt_ids.len() {
-                                if matched[i] {
+                            for (i, &taken) in matched.iter().enumerate() {
+                                if taken {
                                     continue;
                                 }
                                 let e = normalised(obj.obj_id, est, i);
