@@ -10,13 +10,13 @@ use tokio::sync::{Mutex, Notify};
 
 use crate::board_cache::BoardCache;
 use crate::config::Config;
-use crate::dataset_config::{folder_options, is_dataset_folder};
-use crate::dataset_hash;
+use crate::datasets;
+use crate::datasets::config::{folder_options, is_dataset_folder};
+use crate::datasets::parsed_files::ParsedFiles;
+use crate::datasets::uploaded_file;
 use crate::error::{AppError, AppResult};
-use crate::parsed_files::ParsedFiles;
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
-use crate::uploaded_file;
 
 pub struct App {
     pub store: Store,
@@ -56,7 +56,7 @@ impl App {
     /// the datasets of its datasets directory and moves uploads older versions kept on disk
     /// into the database.
     pub async fn start(config: Config, role: Role) -> anyhow::Result<AppState> {
-        crate::metrics::install()?;
+        crate::ops::metrics::install()?;
         if role == Role::Server || config.database_url.is_none() {
             // The SQLite file lives there; a remote worker needs no directory at all.
             std::fs::create_dir_all(&config.data_dir)?;
@@ -77,7 +77,7 @@ impl App {
         let app = Arc::new(App {
             store,
             boards,
-            parsed_files: ParsedFiles::new(crate::parsed_files::DEFAULT_BUDGET),
+            parsed_files: ParsedFiles::new(crate::datasets::parsed_files::DEFAULT_BUDGET),
             config,
             role,
             wake: Notify::new(),
@@ -188,7 +188,7 @@ impl App {
     async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, String>> {
         self.on_pool("loading a dataset", move || {
             Ok(load(&folder).and_then(|ds| {
-                let content_hash = dataset_hash::content_hash(&ds)?;
+                let content_hash = datasets::hash::content_hash(&ds)?;
                 Ok(Loaded {
                     dataset: Arc::new(ds),
                     content_hash,
