@@ -9,3 +9,4 @@ pub mod moderation;
 pub mod publishing;
 pub mod rescoring;
 pub mod submissions;
+pub mod visibility;

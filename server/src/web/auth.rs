@@ -10,6 +10,7 @@ use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
 use crate::app::AppState;
 use crate::error::{AppError, AppResult};
 use crate::service::accounts::{same_secret, sha256_hex};
+use crate::service::visibility;
 use crate::store::accounts::{Session, User};
 
 pub const SESSION_COOKIE: &str = "pb_session";
@@ -88,9 +89,7 @@ impl Viewer {
 
     /// Whether this viewer may see something owned by `owner` (admins see everything).
     pub fn can_see(&self, owner: Option<i64>) -> bool {
-        self.user
-            .as_ref()
-            .is_some_and(|u| u.is_admin || Some(u.id) == owner)
+        visibility::sees_private(self.user.as_ref(), owner)
     }
 }
 

@@ -17,7 +17,7 @@ use crate::demo::DEMO_DATASET;
 use crate::domain::{BoardProtocol, CocoProtocol, Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
-use crate::service::publishing;
+use crate::service::{publishing, visibility};
 use crate::store::accounts::User;
 use crate::store::coco_scores::CocoBoardEntry;
 use crate::store::datasets::DatasetRow;
@@ -770,19 +770,9 @@ impl OwnerLinks {
     }
 }
 
-/// Submission `id` if `viewer` may see it: a private one answers as missing to everyone but
-/// its owner and the admins, exactly like one that does not exist.
-pub async fn visible_submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionRow> {
-    let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !submission.is_public() && !viewer.can_see(submission.owner_id) {
-        return Err(AppError::NotFound);
-    }
-    Ok(submission)
-}
-
-/// A submission as `viewer` may see it (see [`visible_submission`]).
+/// A submission as `viewer` may see it (see [`visibility::submission`]).
 pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
-    let submission = visible_submission(app, id, viewer).await?;
+    let submission = visibility::submission(app, id, viewer.user.as_ref()).await?;
     let manages = viewer.can_see(submission.owner_id);
     let speed = crate::service::submissions::speed(app).await?;
     let now = now_ms();

@@ -10,8 +10,8 @@ use evaluator::results;
 use crate::app::App;
 use crate::datasets::uploaded_file;
 use crate::error::{AppError, AppResult};
+use crate::service::visibility;
 use crate::web::auth::Viewer;
-use crate::web::views;
 
 /// A test target: (scene_id, im_id, obj_id).
 #[derive(Clone, Copy, Debug)]
@@ -32,7 +32,7 @@ pub async fn target_png(
     target: TargetId,
     protocol: Option<ProtocolName>,
 ) -> AppResult<Vec<u8>> {
-    let s = views::visible_submission(app, id, viewer).await?;
+    let s = visibility::submission(app, id, viewer.user.as_ref()).await?;
     let protocol = match protocol {
         Some(p) if s.protocols.contains(&p) => p,
         Some(_) => return Err(AppError::NotFound),

@@ -19,7 +19,7 @@ use crate::datasets::uploaded_file;
 use crate::domain::{BoardProtocol, MethodForm, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, submit};
-use crate::service::{methods, publishing};
+use crate::service::{methods, publishing, visibility};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
@@ -72,14 +72,10 @@ async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Valu
 
 async fn method(
     State(app): State<AppState>,
+    viewer: Viewer,
     Path(id): Path<i64>,
 ) -> AppResult<Json<serde_json::Value>> {
-    let submissions = app.store.public_submissions_of_method(id).await?;
-    let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
-    if submissions.is_empty() {
-        // A method with only private submissions is not public.
-        return Err(AppError::NotFound);
-    }
+    let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
     Ok(Json(
         json!({ "method": method, "submissions": submissions }),
     ))

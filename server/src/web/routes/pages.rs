@@ -19,7 +19,7 @@ use crate::board_cache::Format;
 use crate::domain::{BoardProtocol, MethodForm, Modality, ModelScope, TrainingData, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions;
-use crate::service::{methods, publishing};
+use crate::service::{methods, publishing, visibility};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
 use crate::store::submissions::{Fault, SubmissionRow};
@@ -250,12 +250,8 @@ async fn method(
     viewer: Viewer,
     Path(id): Path<i64>,
 ) -> AppResult<MethodPage> {
-    let submissions = app.store.public_submissions_of_method(id).await?;
-    let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
+    let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
     let may_edit = viewer.can_see(method.owner_id);
-    if submissions.is_empty() && !may_edit {
-        return Err(AppError::NotFound);
-    }
     Ok(MethodPage {
         edit_csrf: viewer
             .session

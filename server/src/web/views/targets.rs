@@ -15,10 +15,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::app::App;
 use crate::error::{AppError, AppResult};
+use crate::service::visibility;
 use crate::store::pose_errors::StoredErrors;
 use crate::store::submissions::{Status, SubmissionRow};
 use crate::web::auth::Viewer;
-use crate::web::views::{urlencode, visible_submission};
+use crate::web::views::urlencode;
 
 /// How many of each object's worst targets the gallery shows.
 pub const WORST_PER_OBJECT: usize = 8;
@@ -125,7 +126,7 @@ impl Named {
 
 /// A submission `viewer` may see, finished: only those have stored errors.
 async fn finished(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionRow> {
-    let s = visible_submission(app, id, viewer).await?;
+    let s = visibility::submission(app, id, viewer.user.as_ref()).await?;
     if s.status != Status::Done {
         return Err(AppError::BadRequest(format!(
             "submission {id} is {}: only finished submissions have targets to show",
