@@ -454,7 +454,9 @@ async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String
             false,
         )
         .await?;
-    let token = server::accounts::create_token(&store, owner, &TokenLabel::parse("bench")?).await?;
+    let token =
+        server::service::accounts::create_token(&store, owner, &TokenLabel::parse("bench")?)
+            .await?;
     let protocols = [ProtocolName::Bop19, ProtocolName::Eccv18];
     let hardware = Hardware::parse("a GPU")?;
     let preflight = Preflight::default();

@@ -6,17 +6,17 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use evaluator::Dataset;
-use tokio::sync::{Mutex, Notify};
+use tokio::sync::{Mutex, Notify, OnceCell};
 
 use crate::board_cache::BoardCache;
 use crate::config::Config;
-use crate::dataset_config::{folder_options, is_dataset_folder};
-use crate::dataset_hash;
+use crate::datasets;
+use crate::datasets::config::{folder_options, is_dataset_folder};
+use crate::datasets::parsed_files::ParsedFiles;
+use crate::datasets::uploaded_file;
 use crate::error::{AppError, AppResult};
-use crate::parsed_files::ParsedFiles;
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
-use crate::uploaded_file;
 
 pub struct App {
     pub store: Store,
@@ -30,7 +30,10 @@ pub struct App {
     pub boards: BoardCache,
     /// Result files parsed for the pictures of their targets.
     pub parsed_files: ParsedFiles,
-    datasets: Mutex<HashMap<i64, Loaded>>,
+    /// The datasets this process has loaded, by id. Each slot is filled once: requests that
+    /// arrive while a dataset loads wait for that load instead of reading and hashing the
+    /// folder again (a large dataset takes seconds and much memory per load).
+    datasets: Mutex<HashMap<i64, Arc<OnceCell<Loaded>>>>,
 }
 
 /// What a process is: the server owns the datasets table and the uploads; a worker process
@@ -56,7 +59,7 @@ impl App {
     /// the datasets of its datasets directory and moves uploads older versions kept on disk
     /// into the database.
     pub async fn start(config: Config, role: Role) -> anyhow::Result<AppState> {
-        crate::metrics::install()?;
+        crate::ops::metrics::install()?;
         if role == Role::Server || config.database_url.is_none() {
             // The SQLite file lives there; a remote worker needs no directory at all.
             std::fs::create_dir_all(&config.data_dir)?;
@@ -77,7 +80,7 @@ impl App {
         let app = Arc::new(App {
             store,
             boards,
-            parsed_files: ParsedFiles::new(crate::parsed_files::DEFAULT_BUDGET),
+            parsed_files: ParsedFiles::new(crate::datasets::parsed_files::DEFAULT_BUDGET),
             config,
             role,
             wake: Notify::new(),
@@ -151,7 +154,10 @@ impl App {
         let mut row = describe(&loaded.dataset, folder);
         row.content_hash = Some(loaded.content_hash.clone());
         let row = self.store.register_dataset(&row).await?;
-        self.datasets.lock().await.insert(row.id, loaded);
+        self.datasets
+            .lock()
+            .await
+            .insert(row.id, Arc::new(OnceCell::new_with(Some(loaded))));
         Ok(row)
     }
 
@@ -164,18 +170,36 @@ impl App {
     /// files here: the server reads the folder it registered, a worker the folder of that name
     /// in its own datasets directory.
     pub async fn loaded(&self, row: &DatasetRow) -> AppResult<Loaded> {
-        if let Some(loaded) = self.datasets.lock().await.get(&row.id) {
-            return Ok(loaded.clone());
+        let slot = self
+            .datasets
+            .lock()
+            .await
+            .entry(row.id)
+            .or_default()
+            .clone();
+        let loaded = slot
+            .get_or_try_init(|| async {
+                let folder = match self.role {
+                    Role::Server => PathBuf::from(&row.path),
+                    Role::Worker => self.config.datasets_dir().join(&row.name),
+                };
+                self.load(folder.clone()).await?.map_err(|e| {
+                    AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
+                })
+            })
+            .await
+            .cloned();
+        if loaded.is_err() {
+            // A failed load is not remembered: the next request reads the folder again.
+            let mut datasets = self.datasets.lock().await;
+            if datasets
+                .get(&row.id)
+                .is_some_and(|s| Arc::ptr_eq(s, &slot) && s.get().is_none())
+            {
+                datasets.remove(&row.id);
+            }
         }
-        let folder = match self.role {
-            Role::Server => PathBuf::from(&row.path),
-            Role::Worker => self.config.datasets_dir().join(&row.name),
-        };
-        let loaded = self.load(folder.clone()).await?.map_err(|e| {
-            AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
-        })?;
-        self.datasets.lock().await.insert(row.id, loaded.clone());
-        Ok(loaded)
+        loaded
     }
 
     /// Forgets a loaded dataset, so that the next use reads the folder again (a worker whose
@@ -188,7 +212,7 @@ impl App {
     async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, String>> {
         self.on_pool("loading a dataset", move || {
             Ok(load(&folder).and_then(|ds| {
-                let content_hash = dataset_hash::content_hash(&ds)?;
+                let content_hash = datasets::hash::content_hash(&ds)?;
                 Ok(Loaded {
                     dataset: Arc::new(ds),
                     content_hash,
@@ -239,5 +263,57 @@ pub fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
         retired: false,
         content_hash: None,
         core: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::demo::{SynthOptions, write_dataset};
+
+    #[derive(Parser)]
+    struct Args {
+        #[command(flatten)]
+        config: Config,
+    }
+
+    /// Concurrent first requests for a dataset share one load: each gets the very dataset the
+    /// others got, not a copy read and hashed again.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_dataset_is_loaded_once_under_concurrent_first_requests() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let datasets = dir.path().join("datasets");
+        write_dataset(&datasets.join("synth"), &SynthOptions::default()).expect("dataset");
+        let db = format!(
+            "sqlite://{}?mode=rwc",
+            dir.path().join("db.sqlite").display()
+        );
+        let args = Args::parse_from([
+            "test",
+            "--data-dir",
+            &dir.path().display().to_string(),
+            "--datasets",
+            &datasets.display().to_string(),
+            "--database-url",
+            &db,
+            "--eval-threads",
+            "4",
+        ]);
+        let app = App::start(args.config, Role::Server).await.expect("start");
+        let row = app.store.datasets().await.expect("datasets").remove(0);
+        app.forget_dataset(row.id).await;
+
+        let loads = (0..8).map(|_| app.loaded(&row));
+        let loaded = futures_util::future::try_join_all(loads)
+            .await
+            .expect("loaded");
+        for other in &loaded[1..] {
+            assert!(Arc::ptr_eq(&loaded[0].dataset, &other.dataset));
+        }
+        // Later requests find it in memory.
+        let again = app.loaded(&row).await.expect("loaded again");
+        assert!(Arc::ptr_eq(&loaded[0].dataset, &again.dataset));
     }
 }

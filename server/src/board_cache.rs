@@ -32,7 +32,7 @@ use std::io::Write;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use axum::body::Bytes;
+use hyper::body::Bytes;
 use tokio::sync::OnceCell;
 
 use crate::domain::BoardProtocol;

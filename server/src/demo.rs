@@ -17,6 +17,7 @@ mod coco;
 mod files;
 mod layouts;
 mod scenes;
+pub mod setup;
 mod shapes;
 mod submissions;
 

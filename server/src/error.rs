@@ -1,12 +1,10 @@
-//! The service's one error type and its mapping to HTTP statuses, in one place. Internal
-//! details (database, I/O) are logged and never shown to the client.
+//! The service's one error type, shared by the use cases, the app state and the web layer. It
+//! says what went wrong in the words of the service (not found, refused, over a limit, an
+//! internal fault); the web layer alone turns it into a status and a body (`web::error`), so
+//! the use cases stay free of HTTP.
 
-use axum::Json;
-use axum::http::StatusCode;
-use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
-use crate::clock::now_ms;
 use crate::domain::FieldError;
 use crate::store::StoreError;
 
@@ -58,20 +56,6 @@ pub enum AppError {
     Internal(String),
 }
 
-/// What the error pages are rendered from (attached to error responses).
-#[derive(Clone, Debug, Serialize)]
-pub struct ErrorBody {
-    pub error: String,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub problems: Vec<LineProblem>,
-    /// For 429: when the next request is allowed (epoch milliseconds).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub retry_at: Option<i64>,
-    /// For 413: the largest body accepted, in bytes.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub limit_bytes: Option<u64>,
-}
-
 /// A size in bytes as people say it: `64 MiB`, `512 KiB`, `100 bytes`.
 fn size(bytes: u64) -> String {
     match bytes {
@@ -99,68 +83,12 @@ impl From<FieldError> for AppError {
 }
 
 impl AppError {
-    pub fn status(&self) -> StatusCode {
-        match self {
-            AppError::NotFound => StatusCode::NOT_FOUND,
-            AppError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
-            AppError::Forbidden(_) => StatusCode::FORBIDDEN,
-            AppError::Conflict(_) => StatusCode::CONFLICT,
-            AppError::TooMany { .. } => StatusCode::TOO_MANY_REQUESTS,
-            AppError::BadRequest(_) => StatusCode::BAD_REQUEST,
-            AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
-            AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
-            AppError::TimedOut(_) => StatusCode::REQUEST_TIMEOUT,
-            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_) => {
-                StatusCode::INTERNAL_SERVER_ERROR
-            }
-        }
-    }
-
-    pub fn body(&self) -> ErrorBody {
-        let status = self.status();
-        let error = if status.is_server_error() {
-            "internal error: the service could not complete the request".to_string()
-        } else {
-            self.to_string()
-        };
-        let problems = match self {
-            AppError::Invalid { problems, .. } => problems.clone(),
-            _ => Vec::new(),
-        };
-        let retry_at = match self {
-            AppError::TooMany { retry_at, .. } => Some(*retry_at),
-            _ => None,
-        };
-        let limit_bytes = match self {
-            AppError::TooLarge { limit } => Some(*limit),
-            _ => None,
-        };
-        ErrorBody {
-            error,
-            problems,
-            retry_at,
-            limit_bytes,
-        }
-    }
-}
-
-impl IntoResponse for AppError {
-    fn into_response(self) -> Response {
-        let status = self.status();
-        if status.is_server_error() {
-            tracing::error!(error = %self, "request failed");
-        }
-        let body = self.body();
-        let mut response = (status, Json(body.clone())).into_response();
-        if let Some(at) = body.retry_at {
-            let secs = ((at - now_ms()).max(0) + 999) / 1000;
-            if let Ok(v) = axum::http::HeaderValue::from_str(&secs.to_string()) {
-                response
-                    .headers_mut()
-                    .insert(axum::http::header::RETRY_AFTER, v);
-            }
-        }
-        response.extensions_mut().insert(body);
-        response
+    /// A fault of the service (database, I/O, a bug), not of the request: logged with its
+    /// cause, and never described to the client.
+    pub fn is_internal(&self) -> bool {
+        matches!(
+            self,
+            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_)
+        )
     }
 }

@@ -1,7 +1,8 @@
 //! The layering of both crates, read from their sources: no module reaches a module that
-//! reaches it back (through `crate::` paths), nothing outside the HTTP layer names `routes`
-//! (apart from where the app is assembled), the store never names the HTTP error type, and the
-//! routes hold no SQL. A text check, like a reviewer's: cheap, and it fails the build the day a
+//! reaches it back (through `crate::` paths); in the server, web -> service -> store and
+//! worker -> service/store, nothing outside `web/` names it (apart from where the app is
+//! assembled) or mentions axum or askama, the store never names the service's error type, and
+//! the web layer holds no SQL. A text check, like a reviewer's: cheap, and it fails the build the day a
 //! circle comes back.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -168,10 +169,35 @@ fn the_checker_finds_a_circle() {
     assert_eq!(circles(&edges(&mods)), vec![vec!["a", "b", "c"]]);
 }
 
-#[test]
-fn the_http_layer_stays_in_its_place() {
-    let mods = modules(&crate_src("server"));
-    let assembly = ["", "app", "cli::service"];
+/// The layer a module belongs to: the folder it sits in under `src` (`web`, `service`, `worker`,
+/// `datasets`, `store`, `ops`, `cli`, `demo`), or `shared` for the files at the root (the app
+/// state, configuration, domain values, the error type) that every layer may use.
+fn layer(module: &str) -> &str {
+    let top = module.split("::").next().unwrap_or("");
+    match top {
+        "web" | "service" | "worker" | "datasets" | "store" | "ops" | "cli" | "demo" => top,
+        _ => "shared",
+    }
+}
+
+/// The layers a layer must not name: web -> service -> store, worker -> service/store; the
+/// shared root, datasets and ops sit under the services, and nothing but the web layer (and the
+/// assembly of the app) reaches the web layer.
+fn forbidden(layer: &str) -> &'static [&'static str] {
+    match layer {
+        "store" => &["web", "service", "worker", "datasets", "ops", "cli", "demo"],
+        "service" => &["web", "worker", "cli", "demo"],
+        "worker" => &["web", "cli", "demo"],
+        "datasets" | "ops" | "shared" => &["web", "service", "worker", "cli", "demo"],
+        "demo" => &["web", "worker", "cli"],
+        _ => &[],
+    }
+}
+
+/// Modules that assemble the app and so may name every layer.
+const ASSEMBLY: [&str; 2] = ["", "cli::service"];
+
+fn rule_breaks(mods: &BTreeMap<String, (PathBuf, String)>) -> Vec<String> {
     let sql = [
         "sqlx::query",
         "\"SELECT",
@@ -179,33 +205,105 @@ fn the_http_layer_stays_in_its_place() {
         "\"DELETE FROM",
         "\"UPDATE ",
     ];
-    for (module, (path, text)) in &mods {
-        let in_routes = module == "routes" || module.starts_with("routes::");
-        let in_store = module == "store" || module.starts_with("store::");
-        if !in_routes && !assembly.contains(&module.as_str()) {
-            assert!(
-                !text.contains("crate::routes"),
-                "{} names the HTTP layer",
-                path.display()
-            );
+    let mut out = Vec::new();
+    for (module, targets) in edges(mods) {
+        if ASSEMBLY.contains(&module.as_str()) {
+            continue;
         }
-        if in_store {
-            assert!(
-                !text.contains("crate::error")
-                    && !text.contains("AppError")
-                    && !text.contains("axum"),
-                "{} (the store) names the HTTP error type or axum",
-                path.display()
-            );
-        }
-        if in_routes {
-            for s in sql {
-                assert!(
-                    !text.contains(s),
-                    "{} (the HTTP layer) holds SQL: {s}",
-                    path.display()
-                );
+        let from = layer(&module);
+        for target in targets {
+            let to = layer(&target);
+            if to != from && forbidden(from).contains(&to) {
+                out.push(format!("{module} ({from}) names {target} ({to})"));
             }
         }
     }
+    for (module, (_, text)) in mods {
+        let from = layer(module);
+        if from != "web" && (text.contains("axum") || text.contains("askama")) {
+            out.push(format!(
+                "{module} mentions axum or askama outside the web layer"
+            ));
+        }
+        if from == "store" && (text.contains("crate::error") || text.contains("AppError")) {
+            out.push(format!(
+                "{module} (the store) names the service's error type"
+            ));
+        }
+        if from == "web" {
+            for s in sql {
+                if text.contains(s) {
+                    out.push(format!("{module} (the web layer) holds SQL: {s}"));
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_layer_names_only_the_layers_under_it() {
+    let mods = modules(&crate_src("server"));
+    for top in [
+        "web", "service", "worker", "datasets", "store", "ops", "cli", "demo",
+    ] {
+        assert!(mods.contains_key(top), "server has its `{top}` folder");
+    }
+    let breaks = rule_breaks(&mods);
+    assert!(breaks.is_empty(), "layering broken:\n{}", breaks.join("\n"));
+}
+
+#[test]
+fn the_layer_checker_finds_each_kind_of_break() {
+    let mut mods = BTreeMap::new();
+    for (name, text) in [
+        ("web", ""),
+        ("web::views", "use crate::service::accounts;"),
+        ("service", ""),
+        (
+            "service::accounts",
+            "use crate::web::views::Page; use crate::store::Store;",
+        ),
+        ("store", "use crate::error::AppError;"),
+        (
+            "worker",
+            "use crate::service::accounts; use crate::store::Store;",
+        ),
+        ("app", "use axum::Router;"),
+        ("cli::service", "use crate::web::views;"),
+    ] {
+        mods.insert(name.to_string(), (PathBuf::new(), text.to_string()));
+    }
+    assert_eq!(
+        rule_breaks(&mods),
+        vec![
+            "service::accounts (service) names web::views (web)".to_string(),
+            "app mentions axum or askama outside the web layer".to_string(),
+            "store (the store) names the service's error type".to_string(),
+        ]
+    );
+}
+
+#[test]
+fn the_root_of_server_src_stays_small() {
+    // Files at the root besides the module files of its folders: at most 12.
+    let src = crate_src("server");
+    let mut loose = Vec::new();
+    for entry in std::fs::read_dir(&src).expect("src") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "rs") && !path.with_extension("").is_dir() {
+            loose.push(
+                path.file_name()
+                    .expect("name")
+                    .to_string_lossy()
+                    .into_owned(),
+            );
+        }
+    }
+    loose.sort();
+    assert!(
+        loose.len() <= 12,
+        "{} files at server/src's root: {loose:?}",
+        loose.len()
+    );
 }

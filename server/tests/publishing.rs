@@ -136,6 +136,25 @@ fn api_default_private_publish_withdraw_and_the_owners_list(kind: Db) {
         .json()
         .expect("json");
     assert_eq!(theirs["submissions"], json!([]), "{kind:?}");
+
+    // The method of a private submission: its owner sees it on the page and through the API
+    // alike (the API used to answer 404 to the owner); anyone else is told nothing is there.
+    let method_id = done["method_id"].as_i64().expect("method id");
+    for path in [
+        format!("/api/v1/methods/{method_id}"),
+        format!("/methods/{method_id}"),
+    ] {
+        let url = format!("{base}{path}");
+        assert_eq!(get_as(&url, &owner).status(), 200, "{kind:?} {path}");
+        for token in [bob.as_str(), ""] {
+            assert_eq!(get_as(&url, token).status(), 404, "{kind:?} {path}");
+        }
+    }
+    let of_method: Value = get_as(&format!("{base}/api/v1/methods/{method_id}"), &owner)
+        .json()
+        .expect("json");
+    assert_eq!(of_method["method"]["name"], "quiet-net", "{kind:?}");
+    assert_eq!(of_method["submissions"], json!([]), "{kind:?}: none public");
     let downloads = [
         format!("{base}/api/v1/submissions/{id}"),
         format!("{base}/api/v1/submissions/{id}/file"),

@@ -17,8 +17,8 @@ use server::preflight::Preflight;
 use server::store::accounts::Counter;
 use server::store::audit::AdminAction;
 use server::store::datasets::DatasetRow;
-use server::store::errors::NewErrors;
 use server::store::methods::MethodMeta;
+use server::store::pose_errors::NewErrors;
 use server::store::queue::Finished;
 use server::store::submissions::{Created, FairUse, Fault, NewSubmission, QueuePlace, Status};
 use server::store::{Store, StoreError};
@@ -153,7 +153,7 @@ fn finished(protocols: &[ProtocolName]) -> (Finished, Vec<serde_json::Value>) {
         errors.push(NewErrors {
             protocol: p,
             rows_count: rows.len() as i64,
-            gzip: server::uploaded_file::compress(&json).expect("gzip"),
+            gzip: server::datasets::uploaded_file::compress(&json).expect("gzip"),
         });
         if first_rows.is_empty() {
             first_rows = rows;

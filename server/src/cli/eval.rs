@@ -21,7 +21,7 @@ use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate_prepared, results};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::dataset_config::{SplitChoice, folder_choice};
+use crate::datasets::config::{SplitChoice, folder_choice};
 use crate::preflight::Preflight;
 use crate::wording::count;
 

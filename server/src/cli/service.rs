@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use crate::accounts;
 use crate::app::{App, Role};
 use crate::config::{Config, ServeConfig};
 use crate::demo::{
@@ -12,8 +11,9 @@ use crate::demo::{
     write_dataset, write_demo_coco_results, write_demo_results,
 };
 use crate::domain::{Password, TokenLabel, UserName};
-use crate::routes::deadlines::Deadlines;
+use crate::service::accounts;
 use crate::shutdown::Shutdown;
+use crate::web::routes::deadlines::Deadlines;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -95,7 +95,7 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
 }
 
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
-    crate::logging::init(args.config.common.log_format);
+    crate::ops::logging::init(args.config.common.log_format);
     let rt = runtime()?;
     let result = rt.block_on(async move {
         let shutdown = Shutdown::on_signals()?;
@@ -105,21 +105,21 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         let config = args.config.common.beside_the_web();
         let demo = !config.no_demo && config.datasets.is_none();
         if demo {
-            crate::demo_setup::ensure_demo_dataset(&config.datasets_dir()).await?;
+            crate::demo::setup::ensure_demo_dataset(&config.datasets_dir()).await?;
         }
         let app = App::start(config, Role::Server).await?;
         if demo {
-            crate::demo_setup::ensure_demo_submissions(&app).await?;
+            crate::demo::setup::ensure_demo_submissions(&app).await?;
         }
-        crate::rescoring::flag_stale(&app.store).await?;
-        let workers = crate::jobs::spawn_workers(&app, &shutdown);
+        crate::service::rescoring::flag_stale(&app.store).await?;
+        let workers = crate::worker::jobs::spawn_workers(&app, &shutdown);
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
         let http = args.config.http;
-        let router = crate::routes::router(app, Deadlines::of(&http));
+        let router = crate::web::routes::router(app, Deadlines::of(&http));
         let stop = shutdown.clone();
-        crate::serve::serve(listener, router, &http, async move { stop.wait().await }).await;
+        crate::web::serve::serve(listener, router, &http, async move { stop.wait().await }).await;
         join_all(workers).await;
         Ok(())
     });
@@ -129,7 +129,7 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
 }
 
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
-    crate::logging::init(args.config.log_format);
+    crate::ops::logging::init(args.config.log_format);
     if args.config.workers == 0 {
         anyhow::bail!("--workers must be at least 1 for `poseboard worker`");
     }
@@ -144,10 +144,10 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
                 "poseboard worker metrics on http://{}",
                 listener.local_addr()?
             );
-            tokio::spawn(crate::routes::ops::serve_alone(app.clone(), listener));
+            tokio::spawn(crate::web::routes::ops::serve_alone(app.clone(), listener));
         }
-        crate::rescoring::flag_stale(&app.store).await?;
-        join_all(crate::jobs::spawn_workers(&app, &shutdown)).await;
+        crate::service::rescoring::flag_stale(&app.store).await?;
+        join_all(crate::worker::jobs::spawn_workers(&app, &shutdown)).await;
         Ok(())
     });
     rt.shutdown_timeout(std::time::Duration::from_secs(1));
@@ -161,7 +161,7 @@ async fn join_all(handles: Vec<tokio::task::JoinHandle<()>>) {
 }
 
 pub fn migrate(args: MigrateArgs) -> anyhow::Result<()> {
-    crate::logging::init(args.config.log_format);
+    crate::ops::logging::init(args.config.log_format);
     runtime()?.block_on(async move {
         let store = crate::store::Store::connect(&args.config.database_url()).await?;
         store.migrate().await?;

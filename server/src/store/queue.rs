@@ -11,7 +11,7 @@ use evaluator::protocol::ProtocolName;
 use sqlx::{Any, Row, Transaction};
 
 use super::board_version;
-use super::errors::{self, NewErrors};
+use super::pose_errors::{self, NewErrors};
 use super::submissions::{Fault, SubmissionRow};
 use super::{Backend, Store, StoreError, StoreResult};
 use crate::clock::now_ms;
@@ -132,7 +132,7 @@ impl Store {
             .bind(id)
             .execute(&mut *tx)
             .await?;
-        errors::replace(&mut tx, id, &finished.errors, now).await?;
+        pose_errors::replace(&mut tx, id, &finished.errors, now).await?;
         insert_scores(&mut tx, id, finished, now).await?;
         board_version::bump(&mut tx).await?;
         tx.commit().await?;

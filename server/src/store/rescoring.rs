@@ -11,7 +11,7 @@ use evaluator::protocol::ProtocolName;
 use serde::Serialize;
 use sqlx::{Any, Row, Transaction};
 
-use super::errors;
+use super::pose_errors;
 use super::queue::{Finished, insert_scores};
 use super::submissions::SubmissionRow;
 use super::{Backend, Store, StoreResult, parse_column};
@@ -261,7 +261,7 @@ impl Store {
             .bind(id)
             .execute(&mut *tx)
             .await?;
-        errors::replace(&mut tx, id, &finished.errors, now).await?;
+        pose_errors::replace(&mut tx, id, &finished.errors, now).await?;
         insert_scores(&mut tx, id, finished, now).await?;
         let after = stored(&mut tx, id).await?;
         let changes = differences(&before, &after);

@@ -1,0 +1,615 @@
+//! The upload flow, one way for every caller (the form, the REST API, the demo set-up): each
+//! file's dataset is the `dataset` field or, without it, the one its BOP name
+//! (`METHOD_DATASET-SPLIT.csv`) says, and the two must agree, since a file for the wrong
+//! dataset is the commonest mistake; the file is validated with the evaluator's parser (every
+//! problem with its line), checked for coverage against the dataset, and stored compressed in
+//! the database under its content hash with its job; the method (get or create), the duplicate
+//! checks and the fair-use limit are decided with the inserts in one transaction. An upload of
+//! several files (one per dataset, or a zip of them) becomes one submission per file, every
+//! file is checked before any is stored, so one bad file refuses them all, and all are created
+//! in one transaction, so a limit met at the fourth file leaves none of the first three behind.
+//! Callers hand over values already parsed at their edge (`MethodName`,
+//! `Visibility`, ...). A refused upload leaves no row behind.
+//!
+//! A `.json` file (or any file when a 2D task is asked for) is a BOP'22 2D result file: parsed
+//! with the evaluator's COCO parser (each problem naming its entry and key), its task the one
+//! asked for or read from its content, and pre-flighted against the dataset's target images.
+
+mod archive;
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+
+use evaluator::protocol::ProtocolName;
+use evaluator::{coco, results};
+use sha2::{Digest, Sha256};
+
+use crate::app::App;
+use crate::clock::now_ms;
+use crate::datasets;
+use crate::datasets::uploaded_file;
+use crate::domain::{CocoProtocol, Hardware, MethodName, Visibility};
+use crate::error::{AppError, AppResult, LineProblem};
+use crate::preflight::Preflight;
+use crate::service::publishing;
+use crate::store::accounts::User;
+use crate::store::methods::MethodMeta;
+use crate::store::submissions::{Created, CreatedAll, FairUse, NewSubmission, SubmissionRow};
+
+/// Estimate evaluations per second assumed until this service has measured its own speed.
+const ASSUMED_SPEED: f64 = 250.0;
+
+/// Estimate evaluations per second: as measured on this service's recent jobs, else assumed.
+pub async fn speed(app: &App) -> AppResult<f64> {
+    Ok(app.store.measured_speed().await?.unwrap_or(ASSUMED_SPEED))
+}
+
+/// An upload, parsed.
+#[derive(Debug)]
+pub struct Upload {
+    pub method: MethodName,
+    /// The name of a served dataset; `None`: each file's name says it.
+    pub dataset: Option<String>,
+    /// The protocols to evaluate a 6D (CSV) file under.
+    pub protocols: Vec<ProtocolName>,
+    /// The 2D task asked for; `None`: a `.json` file's task is inferred from its content.
+    pub task: Option<CocoProtocol>,
+    pub meta: MethodMeta,
+    pub hardware: Hardware,
+    /// As asked; `None`: private for a new submission, and unchanged for a file already
+    /// submitted (so a retry that leaves the field out never publishes a private one). Asking
+    /// for public publishes once evaluated, unless red flags hold it back (see `publishing`).
+    pub visibility: Option<Visibility>,
+    /// One result file per dataset.
+    pub files: Vec<UploadedFile>,
+}
+
+/// A result file received into a temporary file of the submissions folder (removed unless it
+/// is kept), with its content hash.
+#[derive(Debug)]
+pub struct UploadedFile {
+    /// The client's name for it, for display.
+    pub name: String,
+    pub tmp: tempfile::TempPath,
+    pub sha256: String,
+    pub size: u64,
+}
+
+impl UploadedFile {
+    /// A file from bytes already in memory (the demo set-up).
+    pub fn from_bytes(dir: &Path, name: &str, bytes: &[u8]) -> std::io::Result<UploadedFile> {
+        let mut tmp = tempfile::Builder::new()
+            .prefix("upload-")
+            .tempfile_in(dir)?;
+        tmp.write_all(bytes)?;
+        tmp.flush()?;
+        Ok(UploadedFile {
+            name: name.to_string(),
+            tmp: tmp.into_temp_path(),
+            sha256: hex::encode(Sha256::digest(bytes)),
+            size: bytes.len() as u64,
+        })
+    }
+}
+
+pub struct Accepted {
+    pub submission: SubmissionRow,
+    /// The same file had been submitted for the method: this is that submission, with the
+    /// visibility the upload asked for.
+    pub duplicate: bool,
+    pub preflight: Preflight,
+}
+
+/// A file that passed every check, ready to be stored.
+struct Checked {
+    file: UploadedFile,
+    dataset_id: i64,
+    /// The 2D task of a BOP'22 file (scored for it instead of the protocols).
+    task: Option<CocoProtocol>,
+    estimates_count: usize,
+    preflight: Preflight,
+}
+
+/// Whether an upload counts against its owner's fair-use limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Limit {
+    /// A user's upload, through a form or the API.
+    FairUse,
+    /// The service's own demo submissions at first start: they are more than a user may
+    /// make in a day, and nobody is waiting for the limit to protect them.
+    Exempt,
+}
+
+/// Validates, pre-flights, stores and queues an upload by `owner`: one submission per file, in
+/// the order of the files. With several files, every refused one is named in one 422 and
+/// none is stored.
+pub async fn submit(app: &App, owner: &User, upload: Upload) -> AppResult<Vec<Accepted>> {
+    submit_under(app, owner, upload, Limit::FairUse).await
+}
+
+/// [`submit`] under the given limit.
+pub async fn submit_under(
+    app: &App,
+    owner: &User,
+    upload: Upload,
+    limit: Limit,
+) -> AppResult<Vec<Accepted>> {
+    let Upload {
+        method,
+        dataset,
+        protocols,
+        task,
+        meta,
+        hardware,
+        visibility,
+        files,
+    } = upload;
+    if files.is_empty() {
+        return Err(AppError::BadRequest(
+            "field `file` (the result file) is required".into(),
+        ));
+    }
+    let files = unpack_archives(app, files).await?;
+    let several = files.len() > 1;
+    let total = files.len();
+    let mut checked = Vec::new();
+    let mut problems = Vec::new();
+    let mut refused = 0;
+    let mut seen: BTreeMap<String, String> = BTreeMap::new();
+    for file in files {
+        let name = file.name.clone();
+        let result = match file_dataset(dataset.as_deref(), &name) {
+            Ok(ds) => match seen.insert(ds.clone(), name.clone()) {
+                Some(first) => Err(AppError::Invalid {
+                    message: format!("{first} and {name} are both for dataset `{ds}`"),
+                    problems: Vec::new(),
+                }),
+                None if task.is_some() || is_coco_file(&name) => {
+                    check_coco(app, &ds, file, task).await
+                }
+                None => check(app, &ds, file, &protocols).await,
+            },
+            Err(e) => Err(e),
+        };
+        match result {
+            Ok(c) => checked.push(c),
+            Err(e) if !several => return Err(e),
+            Err(e) if !e.is_internal() => {
+                refused += 1;
+                problems.extend(file_problems(&name, e));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if refused > 0 {
+        return Err(AppError::Invalid {
+            message: format!("{refused} of {total} files are refused, so none was submitted"),
+            problems,
+        });
+    }
+
+    store_all(
+        app,
+        owner,
+        &Described {
+            method: &method,
+            meta: &meta,
+            protocols: &protocols,
+            visibility,
+            hardware: &hardware,
+        },
+        checked,
+        limit,
+    )
+    .await
+}
+
+/// The upload's files with every zip archive replaced by the result files it holds.
+async fn unpack_archives(app: &App, files: Vec<UploadedFile>) -> AppResult<Vec<UploadedFile>> {
+    let mut out = Vec::with_capacity(files.len());
+    for file in files {
+        if !archive::is_zip(&file) {
+            out.push(file);
+            continue;
+        }
+        let (dir, limit) = (app.config.submissions_dir(), app.config.max_upload_bytes());
+        // Inflating is CPU work and blocking reads: off the async threads.
+        let unpacked = tokio::task::spawn_blocking(move || archive::unpack(&dir, &file, limit))
+            .await
+            .map_err(|e| AppError::Internal(e.to_string()))??;
+        out.extend(unpacked);
+    }
+    Ok(out)
+}
+
+/// The dataset a file is for: the field when given, else the one its name
+/// `METHOD_DATASET-SPLIT.csv` says; both given must agree.
+fn file_dataset(field: Option<&str>, file_name: &str) -> AppResult<String> {
+    let named = results::parse_result_filename(file_name).map(|n| n.dataset);
+    match (field, named) {
+        (Some(field), Some(named)) if field != named => Err(AppError::Invalid {
+            message: format!(
+                "{file_name} is named for dataset `{named}`, but the field `dataset` says \
+                 `{field}`: is it the file for the right dataset?"
+            ),
+            problems: Vec::new(),
+        }),
+        (Some(field), _) => Ok(field.to_string()),
+        (None, Some(named)) => Ok(named),
+        (None, None) => Err(AppError::BadRequest(format!(
+            "field `dataset` is required unless the file is named METHOD_DATASET-SPLIT.csv \
+             (e.g. my-method_tless-test.csv); {file_name} is not"
+        ))),
+    }
+}
+
+/// A refused file's problems, each naming the file.
+fn file_problems(file_name: &str, e: AppError) -> Vec<LineProblem> {
+    let problems = match &e {
+        AppError::Invalid { problems, .. } => problems.clone(),
+        _ => Vec::new(),
+    };
+    std::iter::once(LineProblem {
+        file: Some(file_name.to_string()),
+        line: 0,
+        message: e.to_string(),
+    })
+    .chain(problems.into_iter().map(|p| LineProblem {
+        file: Some(file_name.to_string()),
+        message: format!("{file_name}: {}", p.message),
+        ..p
+    }))
+    .collect()
+}
+
+/// Parses and pre-flights one file against its dataset, storing nothing.
+async fn check(
+    app: &App,
+    dataset: &str,
+    file: UploadedFile,
+    protocols: &[ProtocolName],
+) -> AppResult<Checked> {
+    let row = app
+        .store
+        .dataset_by_name(dataset)
+        .await?
+        .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
+    let loaded: Arc<evaluator::Dataset> = app.dataset(&row).await?;
+
+    // Parsing and the coverage check are CPU work: off the async threads, in one go.
+    let (path, ps) = (file.tmp.to_path_buf(), protocols.to_vec());
+    let parsed = tokio::task::spawn_blocking(move || {
+        results::load_results(&path).map(|r| (r.estimates.len(), Preflight::of(&loaded, &r, &ps)))
+    })
+    .await
+    .map_err(|e| AppError::Internal(e.to_string()))?;
+    let (estimates_count, preflight) = match parsed {
+        Ok(r) => r,
+        Err(evaluator::Error::Results(problems)) => {
+            let mut list: Vec<LineProblem> = problems
+                .problems
+                .iter()
+                .map(|p| LineProblem {
+                    file: None,
+                    line: p.line,
+                    message: p.to_string(),
+                })
+                .collect();
+            if problems.omitted > 0 {
+                list.push(LineProblem {
+                    file: None,
+                    line: 0,
+                    message: format!("... and {} more problems", problems.omitted),
+                });
+            }
+            return Err(AppError::Invalid {
+                message: format!("{} is not a valid result file", file.name),
+                problems: list,
+            });
+        }
+        Err(e) => return Err(AppError::Internal(e.to_string())),
+    };
+    if estimates_count == 0 {
+        return Err(AppError::Invalid {
+            message: format!("{} contains no estimate", file.name),
+            problems: Vec::new(),
+        });
+    }
+    Ok(Checked {
+        file,
+        dataset_id: row.id,
+        task: None,
+        estimates_count,
+        preflight,
+    })
+}
+
+/// Whether a file is a BOP'22 2D result file (`METHOD_DATASET-test.json`) by its name.
+fn is_coco_file(name: &str) -> bool {
+    name.to_ascii_lowercase().ends_with(".json")
+}
+
+/// [`check`] for a BOP'22 2D file: parsed with the evaluator's parser (each problem naming its
+/// entry and key), its task the one asked for or, without one, segmentation when an entry has
+/// a mask and detection otherwise; then checked to hold what the task scores, and pre-flighted
+/// against the dataset's target images.
+async fn check_coco(
+    app: &App,
+    dataset: &str,
+    file: UploadedFile,
+    asked: Option<CocoProtocol>,
+) -> AppResult<Checked> {
+    let row = app
+        .store
+        .dataset_by_name(dataset)
+        .await?
+        .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
+    let root = app.dataset(&row).await?.root.clone();
+    let path = file.tmp.to_path_buf();
+    let name = file.name.clone();
+    let parsed = tokio::task::spawn_blocking(move || -> AppResult<_> {
+        let results = match coco::load_coco_results(&path) {
+            Ok(r) => r,
+            Err(evaluator::Error::CocoResults(problems)) => {
+                return Err(entry_problems(&name, &problems));
+            }
+            Err(e) => return Err(AppError::Internal(e.to_string())),
+        };
+        let task = asked.unwrap_or(
+            if results.entries.iter().any(|e| e.segmentation.is_some()) {
+                CocoProtocol::Segmentation
+            } else {
+                CocoProtocol::Detection
+            },
+        );
+        results
+            .require(task.task())
+            .map_err(|problems| entry_problems(&name, &problems))?;
+        let gt = datasets::config::coco_gt(&root, false).map_err(|e| AppError::Invalid {
+            message: format!(
+                "dataset `{}` has no usable 2D ground truth (scene_gt_coco.json): {e}",
+                root.file_name().unwrap_or_default().to_string_lossy()
+            ),
+            problems: Vec::new(),
+        })?;
+        Ok((
+            results.entries.len(),
+            task,
+            Preflight::of_coco(&gt, &results),
+        ))
+    })
+    .await
+    .map_err(|e| AppError::Internal(e.to_string()))?;
+    let (estimates_count, task, preflight) = parsed?;
+    if estimates_count == 0 {
+        return Err(AppError::Invalid {
+            message: format!("{} contains no entry", file.name),
+            problems: Vec::new(),
+        });
+    }
+    Ok(Checked {
+        file,
+        dataset_id: row.id,
+        task: Some(task),
+        estimates_count,
+        preflight,
+    })
+}
+
+/// The problems of a refused BOP'22 file, each naming its entry (from 0) and key.
+fn entry_problems(file_name: &str, problems: &coco::problems::EntryProblems) -> AppError {
+    let mut list: Vec<LineProblem> = problems
+        .problems
+        .iter()
+        .map(|p| LineProblem {
+            file: None,
+            line: 0,
+            message: p.to_string(),
+        })
+        .collect();
+    if problems.omitted > 0 {
+        list.push(LineProblem {
+            file: None,
+            line: 0,
+            message: format!("... and {} more problems", problems.omitted),
+        });
+    }
+    AppError::Invalid {
+        message: format!("{file_name} is not a valid BOP'22 result file"),
+        problems: list,
+    }
+}
+
+/// What every file of one upload shares.
+struct Described<'a> {
+    method: &'a MethodName,
+    meta: &'a MethodMeta,
+    protocols: &'a [ProtocolName],
+    visibility: Option<Visibility>,
+    hardware: &'a Hardware,
+}
+
+/// Stores and queues the checked files of one upload, all or none: the files are put in place
+/// first (so no worker can find a job without its file), then every submission is created in
+/// one store transaction; when that refuses (the fair-use limit) or fails, the files no
+/// submission uses are removed again.
+async fn store_all(
+    app: &App,
+    owner: &User,
+    what: &Described<'_>,
+    checked: Vec<Checked>,
+    limit: Limit,
+) -> AppResult<Vec<Accepted>> {
+    let Described {
+        method,
+        meta,
+        protocols,
+        visibility,
+        hardware,
+    } = *what;
+    // The waiting time of each file counts the files of the upload before it.
+    let mut ahead = app.store.work_ahead(i64::MAX).await?;
+    let place = app.store.queue_place(i64::MAX).await?;
+    let speed = speed(app).await?;
+    let mut kept = Vec::with_capacity(checked.len());
+    for Checked {
+        file,
+        dataset_id,
+        task,
+        estimates_count,
+        mut preflight,
+    } in checked
+    {
+        let work = preflight.work();
+        preflight.estimated_seconds = (ahead + work) as f64 / speed;
+        preflight.queue_position = place.queued_ahead;
+        ahead += work;
+        // The file goes into the database with its job (compressed off the async threads), so
+        // any worker, on any machine, finds the two together.
+        let path = file.tmp.to_path_buf();
+        let gzip =
+            tokio::task::spawn_blocking(move || uploaded_file::compress(&std::fs::read(path)?))
+                .await
+                .map_err(|e| AppError::Internal(e.to_string()))?
+                .map_err(|e| AppError::Internal(format!("cannot store the upload: {e}")))?;
+        kept.push(Kept {
+            name: file.name,
+            sha256: file.sha256,
+            size: file.size,
+            gzip,
+            dataset_id,
+            task,
+            estimates_count,
+            preflight,
+        });
+    }
+
+    let config = &app.config;
+    let limited = limit == Limit::FairUse && config.submissions_per_window > 0;
+    let fair_use = limited.then(|| FairUse {
+        limit: config.submissions_per_window as usize,
+        since: now_ms() - config.limit_window_ms(),
+    });
+    let news: Vec<NewSubmission> = kept
+        .iter()
+        .map(|k| {
+            let (visibility, held) =
+                publishing::initial(visibility.unwrap_or(Visibility::Private), &k.preflight);
+            NewSubmission {
+                owner_id: owner.id,
+                method,
+                meta,
+                dataset_id: k.dataset_id,
+                protocols,
+                task: k.task,
+                visibility,
+                held,
+                file_name: &k.name,
+                file_sha256: &k.sha256,
+                file_size: k.size as i64,
+                file_gzip: &k.gzip,
+                estimates_count: k.estimates_count as i64,
+                hardware,
+                preflight: &k.preflight,
+            }
+        })
+        .collect();
+    // Files and submissions go in together or not at all: a refusal leaves nothing behind.
+    let created = match app.store.create_submissions(&news, fair_use).await? {
+        CreatedAll::All(created) => created,
+        CreatedAll::Limited { index, times } => {
+            return Err(over_limit(
+                config.submissions_per_window as usize,
+                config.limit_window_ms(),
+                &times,
+                &kept[index].name,
+                kept.len(),
+            ));
+        }
+    };
+    if created.iter().any(|c| matches!(c, Created::New(_))) {
+        app.wake.notify_waiters();
+    }
+    let mut accepted = Vec::with_capacity(created.len());
+    for (c, k) in created.into_iter().zip(kept) {
+        let (id, duplicate) = match c {
+            Created::New(id) => (id, false),
+            Created::Duplicate(id) => (id, true),
+            Created::Limited { .. } => {
+                return Err(AppError::Internal(
+                    "the store answered a limit among created submissions".into(),
+                ));
+            }
+        };
+        let mut submission = app
+            .store
+            .submission(id)
+            .await?
+            .ok_or_else(|| AppError::Internal("the new submission vanished".into()))?;
+        let preflight = if duplicate {
+            // Re-sending a file with another visibility is how its owner publishes or
+            // withdraws it (the duplicate is of the uploader's own method, so theirs): nothing
+            // is lost and what they asked for holds, red flags holding publication back.
+            if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
+                match publishing::initial(asked, &submission.preflight) {
+                    (_, true) => {
+                        app.store.hold_publication(id).await?;
+                        submission.held = true;
+                    }
+                    (v, false) => {
+                        app.store.set_visibility(id, v).await?;
+                        submission.visibility = v;
+                        submission.held = false;
+                    }
+                }
+            }
+            submission.preflight.clone()
+        } else {
+            k.preflight
+        };
+        accepted.push(Accepted {
+            submission,
+            duplicate,
+            preflight,
+        });
+    }
+    Ok(accepted)
+}
+
+/// A checked file, compressed, about to get its submission.
+struct Kept {
+    name: String,
+    sha256: String,
+    size: u64,
+    gzip: Vec<u8>,
+    dataset_id: i64,
+    task: Option<CocoProtocol>,
+    estimates_count: usize,
+    preflight: Preflight,
+}
+
+/// The answer to an upload over the fair-use limit at file `file` of `files`: the next one is
+/// allowed once the oldest of the last `limit` counted submissions leaves the window.
+fn over_limit(limit: usize, window_ms: i64, times: &[i64], file: &str, files: usize) -> AppError {
+    let retry_at = times
+        .len()
+        .checked_sub(limit)
+        .and_then(|i| times.get(i))
+        .map_or_else(now_ms, |t| t + window_ms);
+    let none = if files > 1 {
+        format!("; none of the {files} files was submitted")
+    } else {
+        String::new()
+    };
+    AppError::TooMany {
+        message: format!(
+            "{file}: at most {limit} submissions per dataset within {} s: the next one is \
+             allowed in {} s{none}",
+            window_ms / 1000,
+            ((retry_at - now_ms()).max(0) + 999) / 1000
+        ),
+        retry_at,
+    }
+}

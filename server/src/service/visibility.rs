@@ -1,0 +1,42 @@
+//! Who may see what, decided here and nowhere else. A public submission is everyone's; a
+//! private one is its owner's and the administrators', and to anyone else it answers as
+//! missing, exactly like one that does not exist (its existence is not told). A method is seen
+//! by everyone once one of its submissions is public, and always by its owner and the
+//! administrators. Every page, API route and picture asks these functions, so the page and the
+//! API of one thing can never disagree.
+
+use crate::app::App;
+use crate::error::{AppError, AppResult};
+use crate::store::accounts::User;
+use crate::store::methods::MethodRow;
+use crate::store::submissions::SubmissionRow;
+
+/// Whether `reader` may see what `owner` owns beyond what is public: the owner and the
+/// administrators may.
+pub fn sees_private(reader: Option<&User>, owner: Option<i64>) -> bool {
+    reader.is_some_and(|u| u.is_admin || Some(u.id) == owner)
+}
+
+/// Submission `id` if `reader` may see it; otherwise missing.
+pub async fn submission(app: &App, id: i64, reader: Option<&User>) -> AppResult<SubmissionRow> {
+    let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
+    if !submission.is_public() && !sees_private(reader, submission.owner_id) {
+        return Err(AppError::NotFound);
+    }
+    Ok(submission)
+}
+
+/// A method `reader` may see, with its public submissions (all the method's page and its JSON
+/// list, whoever asks); otherwise missing.
+pub async fn method(
+    app: &App,
+    id: i64,
+    reader: Option<&User>,
+) -> AppResult<(MethodRow, Vec<SubmissionRow>)> {
+    let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
+    let submissions = app.store.public_submissions_of_method(id).await?;
+    if submissions.is_empty() && !sees_private(reader, method.owner_id) {
+        return Err(AppError::NotFound);
+    }
+    Ok((method, submissions))
+}

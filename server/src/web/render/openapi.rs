@@ -1,0 +1,279 @@
+//! The OpenAPI 3.1 description of `/api/v1`, served at `/api/v1/openapi.json` and shown as the
+//! HTML page `/docs/api`, both from [`document`], so the two cannot disagree.
+
+use serde_json::{Value, json};
+
+/// The description, with the error answers every operation shares (see [`with_error_answers`]).
+pub fn document() -> Value {
+    with_error_answers(paths())
+}
+
+/// The document without the shared error answers.
+fn paths() -> Value {
+    let id_param =
+        json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
+    let export_params = json!([
+        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
+        { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
+        { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
+        { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
+        { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } }
+    ]);
+    let mut doc = json!({
+        "openapi": "3.1.0",
+        "info": {
+            "title": "poseboard API",
+            "version": env!("CARGO_PKG_VERSION"),
+            "description": "Evaluation and leaderboards of the BOP 6D object pose benchmark. Scores use bop_toolkit's key names."
+        },
+        "components": {
+            "securitySchemes": { "bearer": { "type": "http", "scheme": "bearer", "description": "a personal API token from /account" } },
+            "schemas": {
+                "Error": error_schema(),
+                "VisibilityChange": { "type": "object", "required": ["visibility"], "properties": {
+                    "visibility": { "type": "string", "enum": ["public", "private"] },
+                    "confirm": { "type": "boolean", "default": false, "description": "publish despite red flags" } } }
+            }
+        },
+        "paths": {
+            "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
+            "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
+            "/api/v1/methods/{id}": {
+                "get": { "summary": "A method (with its owner's account name) and its public submissions", "parameters": [id_param],
+                    "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } },
+                "post": { "summary": "Change a method's details (its owner or an administrator); fields left out keep their values, an empty one clears it",
+                    "security": [{ "bearer": [] }], "parameters": [id_param],
+                    "requestBody": { "required": true, "content": { "application/json": { "schema": {
+                        "type": "object",
+                        "properties": {
+                            "description": { "type": "string", "maxLength": 10000 },
+                            "authors": { "type": "string", "maxLength": 1000 },
+                            "year": { "type": ["integer", "string"], "description": "1900 to 2100, or empty" },
+                            "paper_url": { "type": "string", "description": "an http(s) link" },
+                            "code_url": { "type": "string", "description": "an http(s) link" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both", ""] },
+                            "detection_modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the detection stage" },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the pose stage" },
+                            "refinement": { "type": "string", "maxLength": 1000 },
+                            "detections": { "type": "string", "maxLength": 1000, "description": "the detections the method starts from" },
+                            "model_scope": { "type": "string", "enum": ["all", "per-object", ""], "description": "one model for all objects or one per object" },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" }
+                        } } } } },
+                    "responses": { "200": { "description": "{method}: as stored" }, "400": { "description": "a field that does not parse" }, "401": { "description": "no valid API token" },
+                        "403": { "description": "the method is another account's" }, "404": { "description": "no such method, or another account's private one" } } }
+            },
+            "/api/v1/submissions/{id}/pin": { "post": { "summary": "Make this submission its method's entry on its dataset (for every protocol it is scored under) instead of the best one; its owner or an administrator",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "{ok, submission, pinned: true}" }, "401": { "description": "no valid API token" }, "403": { "description": "another account's submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/submissions/{id}/unpin": { "post": { "summary": "Remove this submission's pin: the method's best public finished submission on the dataset is its entry again",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "{ok, submission, pinned: false}" }, "401": { "description": "no valid API token" }, "403": { "description": "another account's submission" }, "404": { "description": "no such submission" } } } },
+            "/api/v1/admin/datasets/{name}/core": { "post": { "summary": "Make a dataset core (a column of the main leaderboards, counted in their average) or not; administrators only",
+                "security": [{ "bearer": [] }],
+                "parameters": [{ "name": "name", "in": "path", "required": true, "schema": { "type": "string" } }],
+                "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["core"], "properties": { "core": { "type": "boolean" } } } } } },
+                "responses": { "200": { "description": "{ok, dataset, core}" }, "404": { "description": "no such served dataset, or not an administrator" } } } },
+            "/api/v1/submissions": {
+                "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
+                "post": {
+                    "summary": "Upload result files (BOP'19 CSV, or BOP'22 2D JSON; one per dataset) for evaluation",
+                    "security": [{ "bearer": [] }],
+                    "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
+                        "type": "object", "required": ["method", "file"],
+                        "properties": {
+                            "method": { "type": "string", "maxLength": 100 },
+                            "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"], "description": "default: bop19 and eccv18 for a CSV file; for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
+                            "description": { "type": "string" },
+                            "paper_url": { "type": "string" },
+                            "code_url": { "type": "string" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
+                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: private (only its owner and the administrators see it; everyone else gets 404). public: published once evaluated, unless the pre-flight raises red flags (translations in metres, more than half of the targets without an estimate, estimates for objects the dataset lacks): then it stays private, `held`, until its owner confirms (POST .../visibility with confirm=true). Anything else is 400. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's; without the field it keeps its own" },
+                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset, or a .zip of them (unpacked, within the upload limit); each result file becomes a submission" }
+                        } } } } },
+                    "responses": {
+                        "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
+                        "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
+                        "200": { "description": "every file was already submitted for this method (same dataset and protocols): the existing submissions, not evaluated again, with the visibility asked for if one was given" },
+                        "408": { "description": "the upload stalled: its body must keep delivering a minimum (by default 64 KiB every 20 s), however long the whole upload takes" },
+                        "400": { "description": "a missing or bad field" },
+                        "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
+                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
+                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
+                    }
+                }
+            },
+            "/api/v1/submissions/{id}": {
+                "get": { "summary": "Status, progress (work_done of work estimate evaluations, progress_text and eta_seconds from the speed measured on this server, the queue place), publication state, pre-flight report (red_flags, estimates_evaluated, estimated_seconds) and, once done, the scores per protocol; for its owner also `owner` with the download and action links",
+                    "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission, or a private one of another account" } } },
+                "delete": { "summary": "Delete a submission with its file, scores and errors (owner or administrator)", "security": [{ "bearer": [] }],
+                    "parameters": [id_param], "responses": { "200": { "description": "{ok, deleted}" }, "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" } } } },
+            "/api/v1/submissions/{id}/visibility": { "post": { "summary": "Publish or withdraw a submission (owner or administrator); the boards change at once",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "requestBody": { "required": true, "content": {
+                    "application/x-www-form-urlencoded": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } },
+                    "application/json": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } } } },
+                "responses": { "200": { "description": "{id, visibility, held, publication}" }, "400": { "description": "visibility is not public or private" },
+                    "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" },
+                    "409": { "description": "red flags hold publication back: {error} names them; send confirm=true to publish anyway" } } } },
+            "/api/v1/submissions/{id}/file": { "get": { "summary": "The uploaded result file, as sent (owner or administrator)", "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "text/csv" }, "404": { "description": "no such submission of yours" } } } },
+            "/api/v1/submissions/{id}/report": { "get": { "summary": "The JSON reports, one per protocol or the 2D task's (keys as `poseboard eval --out` writes them)", "parameters": [id_param],
+                "responses": { "200": { "description": "{bop19: {...}, eccv18: {...}}" }, "404": { "description": "no such submission, or a private one of another account" } } } },
+            "/api/v1/submissions/{id}/errors/{protocol}": { "get": { "summary": "Every evaluated estimate's errors against each ground-truth instance (the layout of `poseboard eval --errors-out`), owner or administrator",
+                "security": [{ "bearer": [] }], "parameters": [id_param, { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } }],
+                "responses": { "200": { "description": "[{scene_id, im_id, obj_id, est_id, score, gt_ids, errors: {signature: [error per gt]}}]" }, "404": { "description": "no such submission of yours, or not evaluated under that protocol" } } } },
+        }
+    });
+    // One `json!` holding every path overflows the macro's recursion limit: the rest here.
+    let more = json!({
+            "/api/v1/compare": { "get": { "summary": "Two finished submissions on one dataset side by side: scores per protocol, per object and per visibility bin, and target by target (scene, image, object) where one found more instances than the other, with both errors and paired counts. Each must be visible to the caller",
+                "parameters": [
+                    { "name": "a", "in": "query", "required": true, "schema": { "type": "integer" } },
+                    { "name": "b", "in": "query", "required": true, "schema": { "type": "integer" } },
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["eccv18", "bop19"] }, "description": "whose outcomes are paired; default eccv18 when both have it" },
+                    { "name": "error", "in": "query", "schema": { "type": "string" }, "description": "the error deciding correctness (vsd, mssd, mspd); default vsd" },
+                    { "name": "tau", "in": "query", "schema": { "type": "number" }, "description": "VSD only: one of the protocol's taus; default its main tau" },
+                    { "name": "threshold", "in": "query", "schema": { "type": "number" }, "description": "default: VSD's main theta, another error's middle threshold" }],
+                "responses": { "200": { "description": "{dataset, a, b, scores: [{protocol, scores, objects, visibility}], protocol, criterion, counts: {instances, both, only_a, only_b, neither}, targets: [{scene_id, im_id, obj_id, instances, a: {found, error, url}, b}]}" },
+                    "400": { "description": "a or b missing, not finished, on different datasets, or an unknown criterion" }, "404": { "description": "no such submission, or another account's private one" } } } },
+            "/api/v1/submissions/{id}/targets": { "get": { "summary": "A finished submission's worst target instances per object (missed first, then by decreasing error), at the criterion of /api/v1/compare",
+                "parameters": [id_param,
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["eccv18", "bop19"] } },
+                    { "name": "error", "in": "query", "schema": { "type": "string" } },
+                    { "name": "tau", "in": "query", "schema": { "type": "number" } },
+                    { "name": "threshold", "in": "query", "schema": { "type": "number" } }],
+                "responses": { "200": { "description": "{submission, protocol, criterion, order, objects: [{obj_id, instances, correct, worst: [{scene_id, im_id, obj_id, gt_id, visib_fract, estimates, est_id, error, correct, url, image_url}]}]}" },
+                    "400": { "description": "not finished, or an unknown criterion" } } } },
+            "/api/v1/submissions/{id}/errors/{protocol}/{scene}/{im}/{obj}": { "get": { "summary": "One target of a finished submission: its evaluated estimates' errors against each ground-truth instance of the object, and which instances counted as correct at the chosen criterion and at each error's default",
+                "parameters": [id_param, { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18"] } },
+                    { "name": "scene", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "im", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "obj", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "error", "in": "query", "schema": { "type": "string" } },
+                    { "name": "tau", "in": "query", "schema": { "type": "number" } },
+                    { "name": "threshold", "in": "query", "schema": { "type": "number" } }],
+                "responses": { "200": { "description": "{submission, scene_id, im_id, obj_id, protocol, columns: [{signature, label}], estimates: [{est_id, score, against: [{gt_id, errors}]}], verdicts: [{criterion, outcomes}], image_url}" },
+                    "400": { "description": "not finished, or an unknown criterion" }, "404": { "description": "no such submission or target, or another account's private submission" } } } },
+            "/api/v1/me/submissions": { "get": { "summary": "Your submissions, private ones included, newest first, with status, publication state, headline scores, download and action links",
+                "security": [{ "bearer": [] }], "responses": { "200": { "description": "{submissions: [...]}" }, "401": { "description": "no valid API token or session" } } } },
+            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or 2D task (bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
+                "parameters": [
+                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
+                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
+                    { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
+                    { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } },
+                    { "name": "curves", "in": "query", "schema": { "type": "string" }, "description": "the page's query for the methods its charts overlay (method ids separated by commas, at most 5); checked here, the JSON is the same with or without it" }
+                ],
+                "responses": { "200": { "description": "{protocol, parameters, datasets, core, columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, ci95 ([low, high]: bootstrap 95 % interval of the average, from 1000 seeded resamplings of each dataset's images, replicate-wise means over the datasets), scores per dataset ({submission_id, score, ..., pinned, ci95}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "400": { "description": "an unknown sort, filter value or malformed curves" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/submissions/{id}/targets/{scene_id}/{im_id}/{obj_id}.png": { "get": { "summary": "A target seen through a submission: the test image (RGB, else gray, else the depth image) with the object's ground-truth silhouettes (green tint, green outline) and the silhouettes of the submission's estimates its evaluation considered (the first n_top by score; magenta tint, magenta outline, drawn on top), rendered by the evaluator's renderer",
+                "parameters": [id_param,
+                    { "name": "scene_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "im_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "obj_id", "in": "path", "required": true, "schema": { "type": "integer" } },
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18"] }, "description": "whose n_top decides the estimates drawn; the submission's first protocol by default" }],
+                "responses": { "200": { "description": "image/png" }, "404": { "description": "no such submission (or a private one of another account), no such test target of its dataset, or a protocol it was not submitted for" } } } },
+            "/leaderboards/{protocol}/export.csv": { "get": { "summary": "Every row of a leaderboard as CSV (a download): rank, method, owner, training data, input, hardware; per dataset shown its score, the breakdowns, time, submission and the score's reproducibility record (evaluator version, protocol, parameters as JSON, dataset content hash, result file SHA-256); average, mean, covered, time; per object with `dataset`. Scores as fractions",
+                "parameters": export_params.clone(),
+                "responses": { "200": { "description": "text/csv" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/leaderboards/{protocol}/export.json": { "get": { "summary": "Every row of a leaderboard as JSON (a download): {protocol, score_name, time_unit, parameters, dataset, columns, rows}; the rows are those of /api/v1/leaderboards/{protocol}, each score with its `record`",
+                "parameters": export_params.clone(),
+                "responses": { "200": { "description": "application/json" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/leaderboards/{protocol}/export.tex": { "get": { "summary": "A leaderboard as a complete LaTeX `tabular` in the ECCV'18 paper's layout (needs booktabs): methods by rows; the datasets (with `dataset`: the objects, then the dataset), the average and the time as columns, scores in %, the best of each column in bold; the reproducibility records follow as comment lines",
+                "parameters": export_params,
+                "responses": { "200": { "description": "application/x-tex" }, "400": { "description": "an unknown sort or filter value" }, "404": { "description": "unknown protocol or dataset" } } } },
+            "/api/v1/rescoring": { "get": { "summary": "Every score that re-scoring by a newer evaluator changed, newest first (private submissions' only to their owners and administrators)",
+                "responses": { "200": { "description": "{evaluator_version, changes: [{submission_id, method, dataset, protocol, key (score, recall, ar_vsd, ar_mssd, ar_mspd, time, obj_N), before, after, old_version, new_version, changed_at (epoch ms)}]}" } } } },
+            "/api/v1/snapshots": { "get": { "summary": "Dated snapshots of the leaderboards, newest first",
+                "responses": { "200": { "description": "{snapshots: [{id, taken_at (epoch ms), taken_by, url, boards: [{protocol, dataset (empty: all datasets), url, json_url}]}]}" } } } },
+            "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",
+                "parameters": [
+                    id_param,
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] }, "description": "default: bop19" },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset's board; default: all datasets" }
+                ],
+                "responses": { "200": { "description": "the body /api/v1/leaderboards/{protocol} answered then" }, "404": { "description": "no such snapshot or board" } } } },
+            "/api/v1/admin/snapshots": { "post": { "summary": "Take a snapshot of every board now (administrators; to anyone else this route does not exist)",
+                "security": [{ "bearer": [] }],
+                "responses": { "201": { "description": "{id, taken_at, taken_by, url, boards: [...]} as listed by /api/v1/snapshots" }, "404": { "description": "not an administrator" } } } },
+            "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
+    });
+    if let (Some(paths), Value::Object(more)) = (doc["paths"].as_object_mut(), more) {
+        paths.extend(more);
+    }
+    doc
+}
+
+/// The body of every error answer (`crate::web::error::ErrorBody`).
+fn error_schema() -> Value {
+    json!({
+        "type": "object",
+        "required": ["error"],
+        "properties": {
+            "error": { "type": "string", "description": "what went wrong, in a sentence; for 413 and 429 it states the limit" },
+            "problems": { "type": "array", "description": "422: every problem of the upload", "items": {
+                "type": "object", "required": ["line", "message"],
+                "properties": {
+                    "file": { "type": "string", "description": "the file, when an upload holds several" },
+                    "line": { "type": "integer", "description": "0: the file as a whole" },
+                    "message": { "type": "string" }
+                } } },
+            "retry_at": { "type": "integer", "description": "429: when the next request is allowed, epoch milliseconds (also the Retry-After header, in seconds)" },
+            "limit_bytes": { "type": "integer", "description": "413: the largest upload accepted" }
+        }
+    })
+}
+
+/// Adds what every operation of its kind answers, unless it says so itself: 401 where a token
+/// is needed, 404 where the path names something, 413 and 422 where a body is uploaded; and
+/// gives every 4xx answer the error body's schema.
+fn with_error_answers(mut doc: Value) -> Value {
+    let Some(paths) = doc.get_mut("paths").and_then(Value::as_object_mut) else {
+        return doc;
+    };
+    for (path, item) in paths.iter_mut() {
+        let Some(operations) = item.as_object_mut() else {
+            continue;
+        };
+        for op in operations.values_mut() {
+            let secured = op.get("security").is_some();
+            let uploads = op.get("requestBody").is_some();
+            let Some(responses) = op.get_mut("responses").and_then(Value::as_object_mut) else {
+                continue;
+            };
+            let mut add = |code: &str, description: &str| {
+                responses
+                    .entry(code)
+                    .or_insert_with(|| json!({ "description": description }));
+            };
+            if secured {
+                add("401", "no valid API token (Authorization: Bearer TOKEN)");
+            }
+            if path.contains('{') {
+                add("404", "nothing of that name or id");
+            }
+            if uploads {
+                add(
+                    "413",
+                    "the upload is larger than the limit (the message states it)",
+                );
+                add("422", "the upload cannot be evaluated: {error, problems}");
+            }
+            for (code, answer) in responses.iter_mut() {
+                if code.starts_with('4')
+                    && let Some(answer) = answer.as_object_mut()
+                {
+                    answer.entry("content").or_insert_with(error_content);
+                }
+            }
+        }
+    }
+    doc
+}
+
+fn error_content() -> Value {
+    json!({ "application/json": { "schema": { "$ref": "#/components/schemas/Error" } } })
+}

@@ -1,0 +1,222 @@
+//! What administrators do: hide, delete and re-run submissions, add and retire datasets, from
+//! the API and from buttons on the pages. Every action is written to the audit log. To anyone
+//! else these routes answer as if they did not exist, whatever the method and body.
+
+use axum::extract::{Form, FromRequestParts, Path, Request, State};
+use axum::http::StatusCode;
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Redirect, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use serde::Deserialize;
+use serde_json::json;
+
+use crate::app::AppState;
+use crate::error::{AppError, AppResult};
+use crate::service::moderation;
+use crate::store::accounts::User;
+use crate::store::audit::AdminAction;
+use crate::web::auth::Viewer;
+use crate::web::routes::{pages, snapshots};
+
+pub fn router(app: AppState) -> Router<AppState> {
+    Router::new()
+        .route(
+            "/api/v1/admin/submissions/{id}/{action}",
+            post(api_submission_action),
+        )
+        .route("/api/v1/admin/datasets", post(api_add_dataset))
+        .route(
+            "/api/v1/admin/datasets/{name}/retire",
+            post(api_retire_dataset),
+        )
+        .route("/api/v1/admin/datasets/{name}/core", post(api_set_core))
+        .route("/api/v1/admin/audit", get(api_audit))
+        .route("/api/v1/admin/snapshots", post(api_take_snapshot))
+        .route(
+            "/admin/submissions/{id}/{action}",
+            post(page_submission_action),
+        )
+        .route("/admin/datasets", post(page_add_dataset))
+        .route("/admin/datasets/{name}/retire", post(page_retire_dataset))
+        .route("/admin/datasets/{name}/core", post(page_set_core))
+        .layer(axum::middleware::from_fn_with_state(app, admins_only))
+}
+
+/// Answers everyone but administrators with the page of a path that does not exist, before
+/// the method, path parameters or body are looked at (a 405 or 422 would tell the route is
+/// there). The viewer is kept for the handler.
+async fn admins_only(
+    State(app): State<AppState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, AppError> {
+    let (mut parts, body) = request.into_parts();
+    let viewer = Viewer::from_request_parts(&mut parts, &app).await?;
+    if admin(&viewer).is_err() {
+        return Ok(pages::not_found().await);
+    }
+    parts.extensions.insert(viewer);
+    Ok(next.run(Request::from_parts(parts, body)).await)
+}
+
+fn admin(viewer: &Viewer) -> AppResult<&User> {
+    viewer
+        .user
+        .as_ref()
+        .filter(|u| u.is_admin)
+        .ok_or(AppError::NotFound)
+}
+
+/// The submission actions of the URL; anything else is a route that does not exist.
+fn submission_action_named(action: &str) -> AppResult<AdminAction> {
+    match action.parse() {
+        Ok(
+            a
+            @ (AdminAction::Hide | AdminAction::Unhide | AdminAction::Rerun | AdminAction::Delete),
+        ) => Ok(a),
+        _ => Err(AppError::NotFound),
+    }
+}
+
+async fn api_submission_action(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, action)): Path<(i64, String)>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    moderation::submission_action(&app, actor, id, submission_action_named(&action)?).await?;
+    Ok(Json(
+        json!({ "ok": true, "action": action, "submission": id }),
+    ))
+}
+
+#[derive(Deserialize)]
+struct CsrfForm {
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn page_submission_action(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, action)): Path<(i64, String)>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    moderation::submission_action(&app, actor, id, submission_action_named(&action)?).await?;
+    let to = if action == "delete" {
+        "/".to_string()
+    } else {
+        format!("/submissions/{id}")
+    };
+    Ok(Redirect::to(&to).into_response())
+}
+
+#[derive(Deserialize)]
+struct NewDataset {
+    /// A folder name inside the datasets directory.
+    name: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn api_add_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Json(d): Json<NewDataset>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    let row = moderation::add_dataset(&app, actor, &d.name).await?;
+    Ok(Json(json!({ "dataset": row })))
+}
+
+async fn api_retire_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    moderation::retire_dataset(&app, actor, &name).await?;
+    Ok(Json(json!({ "ok": true, "retired": name })))
+}
+
+async fn page_add_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Form(d): Form<NewDataset>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&d.csrf)?;
+    moderation::add_dataset(&app, actor, d.name.trim()).await?;
+    Ok(Redirect::to("/datasets").into_response())
+}
+
+async fn page_retire_dataset(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    moderation::retire_dataset(&app, actor, &name).await?;
+    Ok(Redirect::to("/datasets").into_response())
+}
+
+#[derive(Deserialize)]
+struct Core {
+    core: bool,
+}
+
+async fn api_set_core(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Json(c): Json<Core>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    moderation::set_core(&app, actor, &name, c.core).await?;
+    Ok(Json(json!({ "ok": true, "dataset": name, "core": c.core })))
+}
+
+#[derive(Deserialize)]
+struct CoreForm {
+    /// `yes` or `no`.
+    core: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn page_set_core(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Form(f): Form<CoreForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    let core = match f.core.as_str() {
+        "yes" => true,
+        "no" => false,
+        _ => return Err(AppError::BadRequest("`core` must be yes or no".into())),
+    };
+    moderation::set_core(&app, actor, &name, core).await?;
+    Ok(Redirect::to("/datasets").into_response())
+}
+
+async fn api_audit(
+    State(app): State<AppState>,
+    viewer: Viewer,
+) -> AppResult<Json<serde_json::Value>> {
+    admin(&viewer)?;
+    Ok(Json(json!({ "audit": app.store.audit_log(500).await? })))
+}
+
+/// Takes a snapshot of every board: 201 with its `id` and the permalinks of its boards.
+async fn api_take_snapshot(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    let entry = snapshots::take(&app, actor).await?;
+    Ok((StatusCode::CREATED, Json(entry)).into_response())
+}

@@ -1,0 +1,282 @@
+//! Dated snapshots of every leaderboard, for papers to cite: an administrator takes one, and
+//! each board (both protocols; all datasets and each dataset; HTML and JSON) is rendered by the
+//! very functions that serve the live board and kept as bytes. Its pages serve those bytes
+//! back, unchanged whatever comes later (new scores, a changed template, another evaluator).
+//!
+//! The HTML of a snapshot's board is the live page rendered with a banner (the date and the
+//! permalink), so the banner is part of the stored bytes rather than spliced into them later.
+
+use std::io::Read;
+use std::ops::Deref;
+
+use askama::Template;
+use askama_web::WebTemplate;
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use crate::app::{App, AppState};
+use crate::board_cache::gzip;
+use crate::clock::now_ms;
+use crate::domain::BoardProtocol;
+use crate::error::{AppError, AppResult};
+use crate::store::accounts::User;
+use crate::store::audit::AdminAction;
+use crate::store::snapshots::{BoardFormat, SnapshotBoard, SnapshotRow};
+use crate::web::routes::api::leaderboard_json;
+use crate::web::routes::boards::accepts_gzip;
+use crate::web::routes::pages::filters;
+use crate::web::routes::pages::{LeaderboardPage, html};
+use crate::web::views::{BoardFilter, urlencode};
+
+/// The pages: the list and each stored board.
+pub fn page_router() -> Router<AppState> {
+    Router::new()
+        .route("/snapshots", get(list_page))
+        .route("/snapshots/{id}", get(board_page))
+}
+
+/// Their JSON twins.
+pub fn api_router() -> Router<AppState> {
+    Router::new()
+        .route("/api/v1/snapshots", get(list_json))
+        .route("/api/v1/snapshots/{id}", get(board_json))
+}
+
+/// A board of a snapshot, as the permalink of a paper names it.
+#[derive(Clone, Debug, Serialize)]
+pub struct BoardLink {
+    pub protocol: BoardProtocol,
+    /// Empty for the board of all datasets.
+    pub dataset: String,
+    pub url: String,
+    pub json_url: String,
+}
+
+/// A snapshot as listed.
+#[derive(Clone, Debug, Serialize)]
+pub struct SnapshotEntry {
+    pub id: i64,
+    pub taken_at: i64,
+    pub taken_by: String,
+    pub url: String,
+    pub boards: Vec<BoardLink>,
+}
+
+impl From<SnapshotRow> for SnapshotEntry {
+    fn from(s: SnapshotRow) -> SnapshotEntry {
+        SnapshotEntry {
+            id: s.id,
+            taken_at: s.taken_at,
+            url: format!("/snapshots/{}", s.id),
+            boards: s
+                .boards
+                .into_iter()
+                .map(|(protocol, dataset)| {
+                    let query = query(protocol, &dataset);
+                    BoardLink {
+                        url: format!("/snapshots/{}{query}", s.id),
+                        json_url: format!("/api/v1/snapshots/{}{query}", s.id),
+                        protocol,
+                        dataset,
+                    }
+                })
+                .collect(),
+            taken_by: s.taken_by,
+        }
+    }
+}
+
+/// The query naming one board: `?protocol=P` and, for one dataset's board, `&dataset=D`.
+fn query(protocol: BoardProtocol, dataset: &str) -> String {
+    if dataset.is_empty() {
+        format!("?protocol={}", protocol.as_str())
+    } else {
+        format!(
+            "?protocol={}&dataset={}",
+            protocol.as_str(),
+            urlencode(dataset)
+        )
+    }
+}
+
+/// A board page of a snapshot: the live page's template and data, with the banner.
+#[derive(Template)]
+#[template(path = "snapshot_board.html")]
+struct SnapshotBoardPage {
+    page: LeaderboardPage,
+    id: i64,
+    taken_at: i64,
+    permalink: String,
+    /// The same board today.
+    live: String,
+}
+
+/// The template reads the live page's fields through this.
+impl Deref for SnapshotBoardPage {
+    type Target = LeaderboardPage;
+    fn deref(&self) -> &LeaderboardPage {
+        &self.page
+    }
+}
+
+/// Takes a snapshot of every board now, by `actor` (an administrator).
+pub(crate) async fn take(app: &App, actor: &User) -> AppResult<SnapshotEntry> {
+    let taken_at = now_ms();
+    let id = app.store.begin_snapshot(actor.id, taken_at).await?;
+    match render_every_board(app, id, taken_at).await {
+        Ok(boards) => app.store.complete_snapshot(id, &boards).await?,
+        Err(e) => {
+            app.store.discard_snapshot(id).await?;
+            return Err(e);
+        }
+    }
+    app.store
+        .audit(actor.id, AdminAction::Snapshot, &id.to_string())
+        .await?;
+    let row = app.store.snapshot(id).await?.ok_or(AppError::NotFound)?;
+    Ok(row.into())
+}
+
+async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<SnapshotBoard>> {
+    let mut datasets = vec![String::new()];
+    datasets.extend(app.store.datasets().await?.into_iter().map(|d| d.name));
+    let mut boards = Vec::with_capacity(2 * BoardProtocol::ALL.len() * datasets.len());
+    for protocol in BoardProtocol::ALL {
+        for dataset in &datasets {
+            let filter = BoardFilter {
+                dataset: (!dataset.is_empty()).then(|| dataset.clone()),
+                ..BoardFilter::default()
+            };
+            let q = query(protocol, dataset);
+            let mut page = LeaderboardPage::of(app, protocol, &filter).await?;
+            // A snapshot is fixed: it draws the best entries' curves and offers no other.
+            page.board.curve_choices.clear();
+            let page = SnapshotBoardPage {
+                page,
+                id,
+                taken_at,
+                permalink: format!("/snapshots/{id}{q}"),
+                live: format!(
+                    "/leaderboards/{}{}",
+                    protocol.as_str(),
+                    filter.with("sort", "")
+                ),
+            };
+            boards.push(SnapshotBoard {
+                protocol,
+                dataset: dataset.clone(),
+                format: BoardFormat::Html,
+                gzip: gzip(&html(&page)?),
+            });
+            boards.push(SnapshotBoard {
+                protocol,
+                dataset: dataset.clone(),
+                format: BoardFormat::Json,
+                gzip: gzip(&leaderboard_json(app, protocol, &filter).await?),
+            });
+        }
+    }
+    Ok(boards)
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "snapshots.html")]
+struct SnapshotsPage {
+    snapshots: Vec<SnapshotEntry>,
+}
+
+async fn entries(app: &App) -> AppResult<Vec<SnapshotEntry>> {
+    Ok(app
+        .store
+        .snapshots()
+        .await?
+        .into_iter()
+        .map(Into::into)
+        .collect())
+}
+
+async fn list_page(State(app): State<AppState>) -> AppResult<SnapshotsPage> {
+    Ok(SnapshotsPage {
+        snapshots: entries(&app).await?,
+    })
+}
+
+async fn list_json(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
+    Ok(Json(json!({ "snapshots": entries(&app).await? })))
+}
+
+/// Which board of a snapshot: the BOP'19 board of all datasets unless named.
+#[derive(Debug, Default, Deserialize)]
+struct BoardQuery {
+    protocol: Option<String>,
+    dataset: Option<String>,
+}
+
+async fn board_page(
+    State(app): State<AppState>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<Response> {
+    stored(&app, &headers, &id, &q, BoardFormat::Html).await
+}
+
+async fn board_json(
+    State(app): State<AppState>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<Response> {
+    stored(&app, &headers, &id, &q, BoardFormat::Json).await
+}
+
+/// The stored bytes of a board, gzipped to clients that take gzip, unpacked for the others.
+async fn stored(
+    app: &App,
+    headers: &HeaderMap,
+    id: &str,
+    q: &BoardQuery,
+    format: BoardFormat,
+) -> AppResult<Response> {
+    let id: i64 = id.parse().map_err(|_| AppError::NotFound)?;
+    let protocol =
+        BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
+    let dataset = q.dataset.as_deref().unwrap_or_default();
+    let gz = app
+        .store
+        .snapshot_board(id, protocol, dataset, format)
+        .await?
+        .ok_or(AppError::NotFound)?;
+    let mut response = if accepts_gzip(headers) {
+        let mut r = gz.into_response();
+        r.headers_mut()
+            .insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+        r
+    } else {
+        let mut body = Vec::with_capacity(gz.len() * 4);
+        flate2::read::GzDecoder::new(gz.as_slice())
+            .read_to_end(&mut body)
+            .map_err(|e| AppError::Internal(format!("snapshot {id}: {e}")))?;
+        body.into_response()
+    };
+    let h = response.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static(match format {
+            BoardFormat::Html => "text/html; charset=utf-8",
+            BoardFormat::Json => "application/json",
+        }),
+    );
+    h.insert(header::VARY, HeaderValue::from_static("accept-encoding"));
+    // A snapshot never changes.
+    h.insert(
+        header::CACHE_CONTROL,
+        HeaderValue::from_static("public, max-age=31536000, immutable"),
+    );
+    Ok(response)
+}

@@ -1,0 +1,206 @@
+//! Receiving an upload over HTTP, from the browser form or the REST API alike: the multipart
+//! body is streamed (each file to a temporary file under the size bound of the whole upload,
+//! hashed on the way), then its fields are parsed into a `submissions::Upload` for the
+//! submissions service.
+
+use std::str::FromStr;
+
+use axum::extract::Multipart;
+use axum::extract::multipart::Field;
+use evaluator::protocol::ProtocolName;
+use sha2::{Digest, Sha256};
+use tokio::io::AsyncWriteExt;
+
+use crate::app::App;
+use crate::domain::{CocoProtocol, Description, Hardware, Link, MethodName, Visibility, optional};
+use crate::error::{AppError, AppResult};
+use crate::service::submissions::{Upload, UploadedFile};
+use crate::store::methods::MethodMeta;
+
+/// Longest accepted text field (method description and the like).
+const MAX_TEXT_FIELD: usize = 10_000;
+
+/// Most result files in one upload: one per dataset, and BOP has fewer than twenty.
+const MAX_FILES: usize = 20;
+
+/// The fields of an upload as sent.
+#[derive(Debug, Default)]
+pub struct Fields {
+    pub method: String,
+    pub dataset: String,
+    pub protocol: String,
+    pub description: String,
+    pub paper_url: String,
+    pub code_url: String,
+    pub training_data: String,
+    pub modality: String,
+    pub hardware: String,
+    pub visibility: String,
+    /// The form's "publish when evaluated" box (sent only when ticked); the API reads
+    /// `visibility` instead.
+    pub publish: String,
+    /// The CSRF token of a browser form (the API authenticates by token instead).
+    pub csrf: String,
+}
+
+impl Fields {
+    /// Checks every field and makes the upload the submissions service takes.
+    pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
+        let method = MethodName::parse(&self.method)?;
+        let (protocols, task) = match self.protocol.trim() {
+            "" => (vec![ProtocolName::Bop19, ProtocolName::Eccv18], None),
+            p => match CocoProtocol::from_str(p) {
+                Ok(task) => (Vec::new(), Some(task)),
+                Err(_) => (
+                    vec![ProtocolName::from_str(p).map_err(|_| {
+                        AppError::BadRequest(format!(
+                            "unknown protocol `{p}` (bop19, eccv18, bop22-det or bop22-seg)"
+                        ))
+                    })?],
+                    None,
+                ),
+            },
+        };
+        let visibility = match self.visibility.trim() {
+            "" => None,
+            v => Some(v.parse::<Visibility>()?),
+        };
+        let meta = MethodMeta {
+            description: Description::parse(&self.description)?,
+            paper_url: Link::parse("paper_url", &self.paper_url)?,
+            code_url: Link::parse("code_url", &self.code_url)?,
+            training_data: optional(&self.training_data)?,
+            modality: optional(&self.modality)?,
+        };
+        if files.is_empty() {
+            return Err(AppError::BadRequest(
+                "field `file` (the result file) is required".into(),
+            ));
+        }
+        let dataset = self.dataset.trim();
+        Ok(Upload {
+            method,
+            dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
+            protocols,
+            task,
+            meta,
+            hardware: Hardware::parse(&self.hardware)?,
+            visibility,
+            files,
+        })
+    }
+}
+
+/// Reads a multipart upload, streaming each file (every `file` field) to a temporary file in
+/// the submissions folder; `limit` bounds the files' total size.
+pub async fn read_upload(
+    app: &App,
+    mut multipart: Multipart,
+    limit: u64,
+) -> AppResult<(Fields, Vec<UploadedFile>)> {
+    let mut fields = Fields::default();
+    let mut files: Vec<UploadedFile> = Vec::new();
+    while let Some(field) = multipart.next_field().await.map_err(multipart_error)? {
+        let name = field.name().unwrap_or_default().to_string();
+        let slot = match name.as_str() {
+            "file" => {
+                if files.len() == MAX_FILES {
+                    return Err(AppError::BadRequest(format!(
+                        "at most {MAX_FILES} files in one upload"
+                    )));
+                }
+                let used: u64 = files.iter().map(|f| f.size).sum();
+                let file = save_file(app, field, limit - used, limit).await?;
+                // A browser sends an empty file field when no file is chosen.
+                if !(file.size == 0 && file.name.is_empty()) {
+                    files.push(file);
+                }
+                continue;
+            }
+            "method" => &mut fields.method,
+            "dataset" => &mut fields.dataset,
+            "protocol" => &mut fields.protocol,
+            "description" => &mut fields.description,
+            "paper_url" => &mut fields.paper_url,
+            "code_url" => &mut fields.code_url,
+            "training_data" => &mut fields.training_data,
+            "modality" => &mut fields.modality,
+            "hardware" => &mut fields.hardware,
+            "visibility" => &mut fields.visibility,
+            "publish" => &mut fields.publish,
+            "csrf" => &mut fields.csrf,
+            _ => {
+                // Unknown fields are drained and ignored.
+                text(field).await?;
+                continue;
+            }
+        };
+        *slot = text(field).await?;
+    }
+    Ok((fields, files))
+}
+
+fn multipart_error(e: axum::extract::multipart::MultipartError) -> AppError {
+    if e.status() == axum::http::StatusCode::PAYLOAD_TOO_LARGE {
+        AppError::TooLarge { limit: 0 }
+    } else {
+        AppError::BadRequest(format!("malformed upload: {}", e.body_text()))
+    }
+}
+
+async fn text(mut field: Field<'_>) -> AppResult<String> {
+    let mut bytes = Vec::new();
+    while let Some(chunk) = field.chunk().await.map_err(multipart_error)? {
+        bytes.extend_from_slice(&chunk);
+        if bytes.len() > MAX_TEXT_FIELD {
+            return Err(AppError::BadRequest(format!(
+                "field `{}` is longer than {MAX_TEXT_FIELD} bytes",
+                field.name().unwrap_or_default()
+            )));
+        }
+    }
+    String::from_utf8(bytes)
+        .map_err(|_| AppError::BadRequest("a text field is not valid UTF-8".into()))
+}
+
+/// Streams one file to a temporary file; `room` is what is left of the upload's `limit`.
+async fn save_file(
+    app: &App,
+    mut field: Field<'_>,
+    room: u64,
+    limit: u64,
+) -> AppResult<UploadedFile> {
+    // Only the last path component of the client's file name is kept, for display.
+    let name = field
+        .file_name()
+        .unwrap_or("results.csv")
+        .rsplit(['/', '\\'])
+        .next()
+        .unwrap_or("results.csv")
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(200)
+        .collect::<String>();
+    let tmp = tempfile::Builder::new()
+        .prefix("upload-")
+        .tempfile_in(app.config.submissions_dir())?
+        .into_temp_path();
+    let mut out = tokio::fs::File::create(&tmp).await?;
+    let mut hasher = Sha256::new();
+    let mut size = 0u64;
+    while let Some(chunk) = field.chunk().await.map_err(multipart_error)? {
+        size += chunk.len() as u64;
+        if size > room {
+            return Err(AppError::TooLarge { limit });
+        }
+        hasher.update(&chunk);
+        out.write_all(&chunk).await?;
+    }
+    out.flush().await?;
+    Ok(UploadedFile {
+        name,
+        tmp,
+        sha256: hex::encode(hasher.finalize()),
+        size,
+    })
+}

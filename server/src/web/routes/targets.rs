@@ -1,0 +1,117 @@
+//! The pages of single targets and their JSON twins: two submissions compared target by target,
+//! one target of a submission, and a submission's worst targets (see `crate::web::views::targets`).
+
+use askama::Template;
+use askama_web::WebTemplate;
+use axum::extract::{Path, Query, State};
+use axum::routing::get;
+use axum::{Json, Router};
+use evaluator::protocol::ProtocolName;
+
+use crate::app::AppState;
+use crate::error::{AppError, AppResult};
+use crate::web::auth::Viewer;
+use crate::web::routes::pages::filters;
+use crate::web::views::targets::{self, Choice, CompareQuery, Comparison, Gallery, TargetView};
+
+pub fn page_router() -> Router<AppState> {
+    Router::new()
+        .route("/compare", get(compare_page))
+        .route("/submissions/{id}/targets", get(gallery_page))
+        .route(
+            "/submissions/{id}/targets/{scene}/{im}/{obj}",
+            get(target_page),
+        )
+}
+
+/// The JSON twins. One target's is under the stored errors it comes from: the path of the
+/// target page under `/api/v1` is its overlay image's.
+pub fn api_router() -> Router<AppState> {
+    Router::new()
+        .route("/api/v1/compare", get(compare_json))
+        .route("/api/v1/submissions/{id}/targets", get(gallery_json))
+        .route(
+            "/api/v1/submissions/{id}/errors/{protocol}/{scene}/{im}/{obj}",
+            get(target_json),
+        )
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "compare.html")]
+struct ComparePage {
+    view: Comparison,
+}
+
+async fn compare_page(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Query(q): Query<CompareQuery>,
+) -> AppResult<ComparePage> {
+    Ok(ComparePage {
+        view: targets::compare(&app, &q, &viewer).await?,
+    })
+}
+
+async fn compare_json(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Query(q): Query<CompareQuery>,
+) -> AppResult<Json<Comparison>> {
+    Ok(Json(targets::compare(&app, &q, &viewer).await?))
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "targets.html")]
+struct GalleryPage {
+    view: Gallery,
+}
+
+async fn gallery_page(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Query(choice): Query<Choice>,
+) -> AppResult<GalleryPage> {
+    Ok(GalleryPage {
+        view: targets::gallery(&app, id, &choice, &viewer).await?,
+    })
+}
+
+async fn gallery_json(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<i64>,
+    Query(choice): Query<Choice>,
+) -> AppResult<Json<Gallery>> {
+    Ok(Json(targets::gallery(&app, id, &choice, &viewer).await?))
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "target.html")]
+struct TargetPage {
+    view: TargetView,
+}
+
+async fn target_page(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, scene, im, obj)): Path<(i64, u32, u32, u32)>,
+    Query(choice): Query<Choice>,
+) -> AppResult<TargetPage> {
+    Ok(TargetPage {
+        view: targets::target(&app, id, (scene, im, obj), &choice, &viewer).await?,
+    })
+}
+
+async fn target_json(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, protocol, scene, im, obj)): Path<(i64, String, u32, u32, u32)>,
+    Query(mut choice): Query<Choice>,
+) -> AppResult<Json<TargetView>> {
+    let protocol: ProtocolName = protocol.parse().map_err(|_| AppError::NotFound)?;
+    choice.protocol = Some(protocol.as_str().to_string());
+    Ok(Json(
+        targets::target(&app, id, (scene, im, obj), &choice, &viewer).await?,
+    ))
+}
