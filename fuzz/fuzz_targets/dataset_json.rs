@@ -36,7 +36,7 @@ fn base() -> &'static Base {
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/reference/dataset");
         let dir = tempfile::tempdir().expect("temporary folder");
         let root = dir.path().join("synthA");
-        let mut copy = |name: &str| {
+        let copy = |name: &str| {
             let to = root.join(name);
             std::fs::create_dir_all(to.parent().expect("parent")).expect("folder");
             std::fs::copy(reference.join(name), to).expect("fixture copied");
