@@ -1,0 +1,8 @@
+//! 16-bit depth images in TIFF (ITODD's), read from disk as the evaluator reads a dataset's.
+#![no_main]
+
+use evaluator::depth_files::DepthFormat;
+
+mod depth;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| depth::read(data, DepthFormat::Tiff));

@@ -1,0 +1,555 @@
+//! The pages in a real browser: Debian's chromium, driven over WebDriver by chromedriver, against
+//! the real server. A person's path through the site (register, sign in, create a token, upload
+//! through the form, watch the evaluation, find the score on the leaderboard), what a signed-out
+//! visitor cannot see, and the phone layout (at 390 px no page scrolls sideways). Screenshots of
+//! the main pages at desktop and phone width go to `target/screenshots/` (or
+//! `$POSEBOARD_SCREENSHOTS`).
+//!
+//! The pages do not depend on the database kind, so this runs on SQLite only.
+//!
+//! Needs `chromedriver` and `chromium` (Debian: `apt-get install chromium chromium-driver`;
+//! `.ci/run` installs them); without them the test fails saying so.
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::common::{BIN, Db, TestDb, cli_report, fixtures, reference_datasets, start};
+use fantoccini::{Client, ClientBuilder, Locator};
+use serde_json::{Value, json};
+
+const PHONE: u32 = 390;
+const DESKTOP: u32 = 1280;
+const PASSWORD: &str = "correct horse battery";
+
+/// A program of this machine: the path in `env` if set, else the first of `names` on the PATH.
+fn program(env: &str, names: &[&str]) -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os(env) {
+        return Some(PathBuf::from(p));
+    }
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .flat_map(|dir| names.iter().map(move |n| dir.join(n)))
+        .find(|p| p.is_file())
+}
+
+fn missing(what: &str) -> ! {
+    panic!(
+        "{what} is not installed: the browser tests need Debian's chromium and chromium-driver \
+         (`apt-get install chromium chromium-driver`; .ci/run installs them)"
+    )
+}
+
+/// chromedriver on a free port, stopped when this goes away.
+struct Driver {
+    child: Child,
+    url: String,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_driver() -> Driver {
+    let bin = program("POSEBOARD_CHROMEDRIVER", &["chromedriver"])
+        .unwrap_or_else(|| missing("chromedriver"));
+    let port = TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port();
+    let child = Command::new(bin)
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("chromedriver starts");
+    Driver {
+        child,
+        url: format!("http://127.0.0.1:{port}"),
+    }
+}
+
+/// A headless chromium session (chromedriver may take a moment to listen).
+async fn browser(driver: &Driver, profile: &Path) -> Client {
+    let chromium = program("POSEBOARD_CHROMIUM", &["chromium", "chromium-browser"])
+        .unwrap_or_else(|| missing("chromium"));
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".to_string(),
+        json!({
+            "binary": chromium,
+            "args": [
+                "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                "--disable-sync", "--disable-quic", "--hide-scrollbars",
+                format!("--window-size={DESKTOP},900"),
+                format!("--user-data-dir={}", profile.display()),
+            ],
+        }),
+    );
+    let start = Instant::now();
+    loop {
+        let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+        match ClientBuilder::new(connector)
+            .capabilities(caps.clone())
+            .connect(&driver.url)
+            .await
+        {
+            Ok(c) => return c,
+            Err(_) if start.elapsed() < Duration::from_secs(15) => {
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+            Err(e) => panic!("no chromium session from chromedriver: {e}"),
+        }
+    }
+}
+
+/// Where screenshots go: `$POSEBOARD_SCREENSHOTS`, else the workspace's `target/screenshots`.
+fn screenshot_dir() -> PathBuf {
+    let dir = std::env::var_os("POSEBOARD_SCREENSHOTS").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/screenshots"),
+        PathBuf::from,
+    );
+    std::fs::create_dir_all(&dir).expect("screenshot folder");
+    dir
+}
+
+/// The element `selector` finds, waiting up to 10 s for it (a page may still be loading after
+/// a form was submitted).
+async fn css(c: &Client, selector: &str) -> fantoccini::elements::Element {
+    let found = c
+        .wait()
+        .at_most(Duration::from_secs(10))
+        .for_element(Locator::Css(selector))
+        .await;
+    match found {
+        Ok(el) => el,
+        Err(e) => panic!("`{selector}` on {:?}: {e}", c.current_url().await),
+    }
+}
+
+async fn text(c: &Client, selector: &str) -> String {
+    css(c, selector).await.text().await.expect("text")
+}
+
+async fn script(c: &Client, js: &str) -> Value {
+    c.execute(js, Vec::new()).await.expect("script runs")
+}
+
+/// Sets the window so that the page is `width` CSS pixels wide.
+async fn page_width(c: &Client, width: u32) {
+    c.set_window_size(width, 900).await.expect("resize");
+    let inner = script(c, "return window.innerWidth").await;
+    let inner = inner.as_u64().expect("innerWidth") as u32;
+    if inner != width {
+        // A window frame: make the inside, not the outside, that wide.
+        c.set_window_size(2 * width - inner, 900)
+            .await
+            .expect("resize");
+    }
+    let inner = script(c, "return window.innerWidth").await;
+    assert_eq!(inner.as_u64(), Some(u64::from(width)), "page width");
+}
+
+async fn fill(c: &Client, form: &str, fields: &[(&str, &str)]) {
+    for (name, value) in fields {
+        let input = css(c, &format!("{form} [name=\"{name}\"]")).await;
+        input.clear().await.expect("clear");
+        input.send_keys(value).await.expect("type");
+    }
+}
+
+/// Submits `form` and waits until the browser has left the page (the old page's root element
+/// goes stale), so that what is read next is the answer's page.
+async fn submit(c: &Client, form: &str) {
+    let old_page = css(c, "html").await;
+    press(c, form).await;
+    let start = Instant::now();
+    while old_page.tag_name().await.is_ok() {
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "`{form}` did not lead to a new page"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Clicks `form`'s submit button (for a form that asks first: the page stays).
+async fn press(c: &Client, form: &str) {
+    css(c, &format!("{form} button[type=\"submit\"]"))
+        .await
+        .click()
+        .await
+        .expect("submit");
+}
+
+/// Uploads `file` through the submit form, with "publish when evaluated" ticked or not, and
+/// returns the submission's id, from the page the form leads to.
+async fn upload_form(c: &Client, base: &str, method: &str, file: &Path, publish: bool) -> i64 {
+    c.goto(&format!("{base}/submit"))
+        .await
+        .expect("submit page");
+    fill(c, "form.submit", &[("method", method)]).await;
+    let select = |name: &'static str| async move {
+        css(c, &format!("form.submit select[name=\"{name}\"]")).await
+    };
+    select("dataset")
+        .await
+        .select_by_value("synthA")
+        .await
+        .expect("dataset");
+    select("protocol")
+        .await
+        .select_by_value("bop19")
+        .await
+        .expect("protocol");
+    let publish_box = css(c, "form.submit input[name=\"publish\"]").await;
+    let ticked = publish_box.prop("checked").await.expect("checked?");
+    assert_eq!(
+        ticked.as_deref(),
+        Some("true"),
+        "publishing is the form's default"
+    );
+    if !publish {
+        publish_box.click().await.expect("untick publish");
+    }
+    css(c, "form.submit input[type=\"file\"]")
+        .await
+        // WebDriver takes only canonical paths.
+        .send_keys(
+            file.canonicalize()
+                .expect("the result file")
+                .to_str()
+                .expect("path"),
+        )
+        .await
+        .expect("file chosen");
+    submit(c, "form.submit").await;
+    c.wait()
+        .at_most(Duration::from_secs(20))
+        .for_element(Locator::Css("#status"))
+        .await
+        .expect("the submission's page");
+    let id = css(c, "#status").await.attr("data-id").await.expect("attr");
+    id.and_then(|v| v.parse().ok())
+        .expect("the submission's id")
+}
+
+/// Waits until the page's status reads `done`, returning every status seen on the way.
+async fn watch_until_done(c: &Client) -> Vec<String> {
+    let mut seen: Vec<String> = Vec::new();
+    let start = Instant::now();
+    loop {
+        // The page reloads itself when the job ends: the element may be replaced under us.
+        if let Ok(el) = c.find(Locator::Css("#status-text")).await
+            && let Ok(t) = el.text().await
+        {
+            if seen.last() != Some(&t) {
+                seen.push(t.clone());
+            }
+            if t.starts_with("done") {
+                return seen;
+            }
+            assert!(!t.starts_with("failed"), "the evaluation failed: {seen:?}");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(40),
+            "not done in time: {seen:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// `poseboard worker` on the server's database: the jobs queued so far get evaluated.
+fn start_worker(data: &Path, datasets: &Path) -> Child {
+    Command::new(BIN)
+        .arg("worker")
+        .arg("--data-dir")
+        .arg(data.join("worker"))
+        .arg("--datasets")
+        .arg(datasets)
+        .env(
+            "DATABASE_URL",
+            format!("sqlite://{}", data.join("poseboard.db").display()),
+        )
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("worker starts")
+}
+
+struct Worker(Child);
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn pages_work_in_a_real_browser() {
+    let driver = start_driver();
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let data = dir.path().join("data");
+    let db = TestDb::new(Db::Sqlite, "browser");
+    // No worker in the server: the test starts one once it has seen its upload wait in the queue.
+    let server = start(&data, &datasets, &db, &["--no-demo", "--workers", "0"]);
+    let public_file = fixtures().join("results/noisemedium_synthA-test.csv");
+    let private_file = fixtures().join("results/noisesmall_synthA-test.csv");
+    let expected = cli_report(&fixtures().join("dataset"), &public_file, "bop19");
+    let expected_ar = expected["bop19_average_recall"]
+        .as_f64()
+        .expect("AR from poseboard eval");
+    let profile = dir.path().join("chromium-profile");
+
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    rt.block_on(async {
+        let c = browser(&driver, &profile).await;
+        let base = server.base.as_str();
+        let shots = screenshot_dir();
+
+        // Register, sign out, sign in again.
+        c.goto(&format!("{base}/register"))
+            .await
+            .expect("register page");
+        fill(
+            &c,
+            "form.submit",
+            &[("name", "alice"), ("password", PASSWORD)],
+        )
+        .await;
+        submit(&c, "form.submit").await;
+        assert_eq!(
+            text(&c, "h1").await,
+            "alice",
+            "the account page after registering"
+        );
+        submit(&c, "form[action=\"/logout\"]").await;
+        c.goto(&format!("{base}/login")).await.expect("login page");
+        fill(
+            &c,
+            "form.submit",
+            &[("name", "alice"), ("password", PASSWORD)],
+        )
+        .await;
+        submit(&c, "form.submit").await;
+        assert_eq!(
+            text(&c, "h1").await,
+            "alice",
+            "the account page after signing in"
+        );
+
+        // A token: shown once in its box, with a copy button and a curl example for this server.
+        fill(
+            &c,
+            "form[action=\"/account/tokens\"]",
+            &[("name", "laptop")],
+        )
+        .await;
+        submit(&c, "form[action=\"/account/tokens\"]").await;
+        let token = text(&c, "#token-box #new-token").await;
+        assert!(token.len() >= 32, "a token: {token:?}");
+        let example = text(&c, "#token-box #curl-example").await;
+        assert!(
+            example.contains(&format!("Bearer {token}"))
+                && example.contains(&format!("{base}/api/v1/submissions")),
+            "{example}"
+        );
+        let copy = css(&c, "#token-box button[data-copy=\"new-token\"]").await;
+        copy.click().await.expect("copy");
+        // The button answers at once (its script runs under the CSP), then says what the
+        // clipboard did; it reads "Copy" again two seconds later.
+        let label = copy.text().await.expect("label");
+        assert!(
+            ["Copying…", "Copied", "Selected: press Ctrl+C"].contains(&label.as_str()),
+            "the copy button answers (its script runs under the CSP): {label:?}"
+        );
+        // Revoking asks first; saying no keeps the token.
+        press(&c, "form[action$=\"/revoke\"]").await;
+        let question = c.get_alert_text().await.expect("a confirmation");
+        assert!(
+            question.starts_with("Revoke the token laptop"),
+            "{question}"
+        );
+        c.dismiss_alert().await.expect("dismissed");
+        c.goto(&format!("{base}/account")).await.expect("account");
+        assert!(
+            c.find(Locator::Css("form[action$=\"/revoke\"]"))
+                .await
+                .is_ok(),
+            "the token is still there"
+        );
+
+        // Upload through the form, kept private for now, and watch it go from the queue to done.
+        let id = upload_form(&c, base, "browser-net", &public_file, false).await;
+        let status = text(&c, "#status-text").await;
+        assert!(
+            status.starts_with("queued"),
+            "before a worker runs: {status}"
+        );
+        let _worker = Worker(start_worker(&data, &datasets));
+        let seen = watch_until_done(&c).await;
+        assert!(seen.len() >= 2, "the page followed the job: {seen:?}");
+        let submission_url = format!("{base}/submissions/{id}");
+        let method_href = css(&c, "h1 a[href^=\"/methods/\"]")
+            .await
+            .attr("href")
+            .await
+            .expect("attr")
+            .expect("the method's link");
+
+        // Not on the board until published; then the board shows the score `poseboard eval`
+        // gives for the file.
+        let board = format!("{base}/leaderboards/bop19?dataset=synthA");
+        c.goto(&board).await.expect("leaderboard");
+        assert!(
+            c.find(Locator::Css(&format!("a[href=\"/submissions/{id}\"]")))
+                .await
+                .is_err(),
+            "a private submission is on the board"
+        );
+        c.goto(&submission_url).await.expect("submission page");
+        submit(
+            &c,
+            &format!("form[action=\"/submissions/{id}/visibility\"]"),
+        )
+        .await;
+        assert_eq!(
+            text(&c, "#publication").await,
+            "public",
+            "published from its page"
+        );
+        c.goto(&board).await.expect("leaderboard");
+        let score = text(&c, &format!("a[href=\"/submissions/{id}\"]")).await;
+        assert_eq!(
+            score,
+            format!("{:.1}", expected_ar * 100.0),
+            "the board's score"
+        );
+
+        // A private upload: its owner sees it, a signed-out visitor finds it nowhere.
+        let hidden = upload_form(&c, base, "hidden-net", &private_file, false).await;
+        watch_until_done(&c).await;
+        let hidden_method = css(&c, "h1 a[href^=\"/methods/\"]")
+            .await
+            .attr("href")
+            .await
+            .expect("attr")
+            .expect("link");
+        c.goto(&format!("{base}/account")).await.expect("account");
+        submit(&c, "form[action=\"/logout\"]").await;
+        for url in [board.clone(), format!("{base}/")] {
+            c.goto(&url).await.expect("board");
+            let page = c.source().await.expect("html");
+            assert!(page.contains("browser-net"), "{url}: the public entry");
+            assert!(
+                !page.contains("hidden-net"),
+                "{url}: the private one is listed"
+            );
+        }
+        for url in [
+            format!("{base}/submissions/{hidden}"),
+            format!("{base}{hidden_method}"),
+        ] {
+            c.goto(&url).await.expect("page");
+            assert_eq!(text(&c, "h1").await, "Not found", "{url} signed out");
+        }
+
+        // The API page lists every route of the OpenAPI document.
+        c.goto(&format!("{base}/docs/api")).await.expect("API page");
+        let api_page = text(&c, "main").await;
+        let doc = script(
+            &c,
+            "return fetch('/api/v1/openapi.json').then(function (r) { return r.json(); })",
+        )
+        .await;
+        for path in doc["paths"].as_object().expect("paths").keys() {
+            assert!(api_page.contains(path.as_str()), "{path} on /docs/api");
+        }
+
+        // Signed in again for the account and submit pages.
+        c.goto(&format!("{base}/login")).await.expect("login page");
+        fill(
+            &c,
+            "form.submit",
+            &[("name", "alice"), ("password", PASSWORD)],
+        )
+        .await;
+        submit(&c, "form.submit").await;
+
+        let pages = [
+            ("home", format!("{base}/")),
+            ("leaderboard", board.clone()),
+            ("datasets", format!("{base}/datasets")),
+            ("method", format!("{base}{method_href}")),
+            ("submission", submission_url.clone()),
+            ("account", format!("{base}/account")),
+            ("submit", format!("{base}/submit")),
+            ("api", format!("{base}/docs/api")),
+        ];
+        for (width, kind) in [(DESKTOP, "desktop"), (PHONE, "phone")] {
+            page_width(&c, width).await;
+            for (name, url) in &pages {
+                c.goto(url).await.expect("page");
+                let png = c.screenshot().await.expect("screenshot");
+                std::fs::write(shots.join(format!("{name}-{kind}.png")), png).expect("png");
+                if width == PHONE {
+                    let widths = script(
+                        &c,
+                        "return [document.scrollingElement.scrollWidth, window.innerWidth]",
+                    )
+                    .await;
+                    let (scroll, inner) = (widths[0].as_u64(), widths[1].as_u64());
+                    assert!(
+                        scroll <= inner,
+                        "{name} scrolls sideways at {PHONE} px: {scroll:?} > {inner:?}"
+                    );
+                }
+            }
+        }
+
+        // On a phone the menu folds away behind its button, and the board's method column
+        // stays in view.
+        c.goto(&board).await.expect("leaderboard");
+        let nav = css(&c, "header nav").await;
+        assert!(
+            !nav.is_displayed().await.expect("shown?"),
+            "the menu is folded"
+        );
+        css(&c, "label.nav-button")
+            .await
+            .click()
+            .await
+            .expect("menu");
+        assert!(nav.is_displayed().await.expect("shown?"), "the menu opens");
+        let sticky = css(&c, "table.board td.sticky").await;
+        assert_eq!(sticky.css_value("position").await.expect("css"), "sticky");
+
+        // The login page is seen signed out.
+        c.goto(&format!("{base}/account")).await.expect("account");
+        submit(&c, "form[action=\"/logout\"]").await;
+        for (width, kind) in [(DESKTOP, "desktop"), (PHONE, "phone")] {
+            page_width(&c, width).await;
+            c.goto(&format!("{base}/login")).await.expect("login");
+            let png = c.screenshot().await.expect("screenshot");
+            std::fs::write(shots.join(format!("login-{kind}.png")), png).expect("png");
+            let widths = script(
+                &c,
+                "return [document.scrollingElement.scrollWidth, window.innerWidth]",
+            )
+            .await;
+            assert!(widths[0].as_u64() <= widths[1].as_u64(), "login: {widths}");
+        }
+        c.close().await.expect("session closed");
+    });
+}
