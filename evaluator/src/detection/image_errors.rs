@@ -91,14 +91,25 @@ impl ImageWork {
                                     f64::INFINITY
                                 },
                             );
-                            mspd.push(pose_error::mspd(
-                                &est.pose,
-                                gt,
-                                &image.camera,
-                                &object.mesh.vertices,
-                                syms,
-                                &mut px_scratch,
-                            ));
+                            let pts = &object.mesh.vertices;
+                            mspd.push(match &image.fisheye {
+                                Some(cam) => pose_error::mspd_fisheye(
+                                    &est.pose,
+                                    gt,
+                                    cam,
+                                    pts,
+                                    syms,
+                                    &mut px_scratch,
+                                ),
+                                None => pose_error::mspd(
+                                    &est.pose,
+                                    gt,
+                                    &image.camera,
+                                    pts,
+                                    syms,
+                                    &mut px_scratch,
+                                ),
+                            });
                         }
                         EstimateErrors {
                             score: est.score,

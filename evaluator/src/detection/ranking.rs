@@ -97,11 +97,12 @@ impl Ranking {
         error: DetectionError,
     ) -> ErrorScores {
         let thresholds = error.thresholds();
-        let width = f64::from(dataset.image_size.0);
-        let normalised = |obj_id: u32, e: &EstimateErrors, i: usize| match error {
+        // MSPD is normalised by the width of the scene's evaluated sensor, as the toolkit does
+        // (HOT3D's two headsets differ).
+        let normalised = |scene_id: u32, obj_id: u32, e: &EstimateErrors, i: usize| match error {
             DetectionError::Mssd => e.mssd[i] / dataset.objects[&obj_id].info.diameter,
             DetectionError::MssdMm => e.mssd[i],
-            DetectionError::Mspd => 640.0 / width * e.mspd[i],
+            DetectionError::Mspd => 640.0 / f64::from(dataset.image_width(scene_id)) * e.mspd[i],
         };
         let mut curves: BTreeMap<u32, Vec<[f64; RECALL_POINTS]>> = BTreeMap::new();
         for &threshold in &thresholds {
@@ -167,7 +168,7 @@ fn outcomes(
     dataset: &Dataset,
     images: &[ImageErrors],
     threshold: f64,
-    normalised: &impl Fn(u32, &EstimateErrors, usize) -> f64,
+    normalised: &impl Fn(u32, u32, &EstimateErrors, usize) -> f64,
 ) -> Vec<Vec<Vec<Outcome>>> {
     images
         .iter()
@@ -186,7 +187,7 @@ fn outcomes(
                                 if taken {
                                     continue;
                                 }
-                                let e = normalised(obj.obj_id, est, i);
+                                let e = normalised(im.scene_id, obj.obj_id, est, i);
                                 if e < best_error {
                                     best = Some(i);
                                     best_error = e;

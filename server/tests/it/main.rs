@@ -13,7 +13,9 @@
 mod accounts;
 mod admin;
 mod board_cache;
+mod bop24_cli;
 mod browser;
+mod challenge_datasets;
 mod coco_cli;
 mod coco_service;
 mod common;
@@ -29,6 +31,7 @@ mod fair_use;
 mod hostile_input;
 mod ops;
 mod parallel_uploads;
+mod prepare_cli;
 mod publishing;
 mod ranking;
 mod reader_pages;

@@ -3,11 +3,9 @@
 //! targets and result files), checked against the scores bop_toolkit's `eval_bop24_pose.py`
 //! computed there.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{eval_report, fixtures, poseboard};
+use crate::common::{eval_report, fixtures, poseboard};
 use serde_json::Value;
 
 const KEYS: [&str; 7] = [

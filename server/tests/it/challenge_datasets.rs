@@ -4,14 +4,12 @@
 //! files; a file of their ground-truth poses scores 1.0 under every protocol each supports; and
 //! a protocol needing VSD is refused, saying why, where the toolkit computes none.
 
-mod common;
-
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::sync::atomic::AtomicBool;
 
-use common::{BIN, cli_report};
+use crate::common::{BIN, cli_report};
 use evaluator::protocol::{ErrorKind, Protocol};
 use evaluator::results::load_results;
 use evaluator::{Dataset, NoProgress, evaluate};
@@ -35,16 +33,28 @@ struct Check {
     needs_vsd: bool,
 }
 
-const CHECKS: &[Check] = &[Check {
-    protocol: "bop19",
-    keys: &[
-        "bop19_average_recall",
-        "bop19_average_recall_vsd",
-        "bop19_average_recall_mssd",
-        "bop19_average_recall_mspd",
-    ],
-    needs_vsd: true,
-}];
+const CHECKS: &[Check] = &[
+    Check {
+        protocol: "bop19",
+        keys: &[
+            "bop19_average_recall",
+            "bop19_average_recall_vsd",
+            "bop19_average_recall_mssd",
+            "bop19_average_recall_mspd",
+        ],
+        needs_vsd: true,
+    },
+    Check {
+        protocol: "bop24",
+        keys: &[
+            "bop24_mAP",
+            "bop24_mAP_mssd",
+            "bop24_mAP_mssd_mm",
+            "bop24_mAP_mspd",
+        ],
+        needs_vsd: false,
+    },
+];
 
 /// The protocols that need VSD.
 const VSD_PROTOCOLS: [&str; 2] = ["bop19", "eccv18"];

@@ -2,11 +2,9 @@
 //! them: the scores are the same with and without it, and one that cannot be used is named on
 //! stderr and left alone.
 
-mod common;
-
 use std::path::Path;
 
-use common::{eval_report, fixtures, poseboard};
+use crate::common::{eval_report, fixtures, poseboard};
 
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
