@@ -1517,11 +1517,12 @@ mod tests {
             "{msg}"
         );
 
+        // 16 parameters (fx, fy, ...) or 15 (one f) are valid; 14 is neither.
         edit_json(&path, |v| {
-            v["0"]["cam_model"]["projection_params"]
+            let params = v["0"]["cam_model"]["projection_params"]
                 .as_array_mut()
-                .unwrap()
-                .pop();
+                .unwrap();
+            params.truncate(14);
         });
         let msg = load_error(&dir).to_string();
         assert!(
