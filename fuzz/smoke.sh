@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs every fuzz target for a short while (20 s each by default; FUZZ_SECONDS to change it)
-# from its seed corpus, and fails on the first crash, leak, timeout or out-of-memory. Part of
-# the test command (tests/run-all.sh). Needs the nightly toolchain (libFuzzer's coverage
-# instrumentation); installs cargo-fuzz when missing.
+# from its seed corpus, and fails on the first crash, leak, timeout or out-of-memory. Run by
+# hand until its cost on CI is measured (see the README's Fuzzing section). Needs the nightly
+# toolchain (libFuzzer's coverage instrumentation); installs cargo-fuzz when missing.
 #
 # The seeds in fuzz/corpus/<target> are read only: what the fuzzer finds goes to a temporary
 # folder, so a run leaves the repository as it was (a crash is written to
