@@ -545,6 +545,15 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         return Ok(());
     };
     let dataset = load_dataset(dir, &args.results, &args.split)?;
+    // Localization counts targets per object; an image list would make every object of the
+    // ground truth a target and report misses the detection task does not have.
+    if dataset.targets_form == evaluator::dataset::TargetsForm::Images {
+        bail!(
+            "{} lists images (BOP'24 detection targets): check with --protocol bop24, or give \
+             targets as in test_targets_bop19.json",
+            dataset.targets_path.display()
+        );
+    }
     // The upload pre-flight check, so the command line and the service say the same.
     let p = Preflight::of(
         &dataset,

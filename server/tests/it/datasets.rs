@@ -292,7 +292,10 @@ fn split_choices_and_unloadable_layouts_are_explained() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("test_targets_bop24.json: target 0 has no obj_id"),
+        err.contains(
+            "test_targets_bop24.json lists images (BOP'24 detection targets): check with \
+             --protocol bop24"
+        ),
         "{err}"
     );
 
