@@ -177,29 +177,18 @@ impl App {
             .entry(row.id)
             .or_default()
             .clone();
-        let loaded = slot
-            .get_or_try_init(|| async {
-                let folder = match self.role {
-                    Role::Server => PathBuf::from(&row.path),
-                    Role::Worker => self.config.datasets_dir().join(&row.name),
-                };
-                self.load(folder.clone()).await?.map_err(|e| {
-                    AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
-                })
+        // A failed load leaves the slot empty, so the next request reads the folder again.
+        slot.get_or_try_init(|| async {
+            let folder = match self.role {
+                Role::Server => PathBuf::from(&row.path),
+                Role::Worker => self.config.datasets_dir().join(&row.name),
+            };
+            self.load(folder.clone()).await?.map_err(|e| {
+                AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
             })
-            .await
-            .cloned();
-        if loaded.is_err() {
-            // A failed load is not remembered: the next request reads the folder again.
-            let mut datasets = self.datasets.lock().await;
-            if datasets
-                .get(&row.id)
-                .is_some_and(|s| Arc::ptr_eq(s, &slot) && s.get().is_none())
-            {
-                datasets.remove(&row.id);
-            }
-        }
-        loaded
+        })
+        .await
+        .cloned()
     }
 
     /// Forgets a loaded dataset, so that the next use reads the folder again (a worker whose
