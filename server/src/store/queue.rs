@@ -55,35 +55,18 @@ impl Store {
         .bind(max_attempts)
         .execute(&self.pool)
         .await?;
-        let lock = match self.backend {
-            Backend::Postgres => " FOR UPDATE SKIP LOCKED",
-            // SQLite runs one writer at a time, so the subquery and the update are atomic.
-            Backend::Sqlite => "",
-        };
-        // One placeholder per skipped dataset; only the count comes from the caller.
-        let skipped = if skip.is_empty() {
-            String::new()
-        } else {
-            let marks: Vec<String> = (0..skip.len()).map(|i| format!("${}", i + 4)).collect();
-            format!(" AND dataset_id NOT IN ({})", marks.join(", "))
-        };
-        let sql = format!(
-            "UPDATE submissions SET status = 'running', worker = $1, lease_until = $2, \
-             attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = 0, work_done = 0 \
-             WHERE id = (SELECT id FROM submissions WHERE (status = 'queued' \
-             OR (status = 'running' AND lease_until < $3)){skipped} ORDER BY id LIMIT 1{lock}) \
-             RETURNING id"
-        );
-        let mut query = sqlx::query(sqlx::AssertSqlSafe(sql))
-            .bind(worker)
-            .bind(now + lease_ms)
-            .bind(now);
-        for id in skip {
-            query = query.bind(*id);
+        let claimed = Claim {
+            set: "status = 'running', worker = $1, lease_until = $2, attempts = attempts + 1, \
+                  started_at = COALESCE(started_at, $3), progress = 0, work_done = 0",
+            available: "(status = 'queued' OR (status = 'running' AND lease_until < $3))",
+            worker,
+            numbers: &[now + lease_ms, now],
+            skip,
         }
-        let row = query.fetch_optional(&self.pool).await?;
-        match row {
-            Some(row) => self.submission(row.try_get("id")?).await,
+        .run(self)
+        .await?;
+        match claimed {
+            Some(id) => self.submission(id).await,
             None => Ok(None),
         }
     }
@@ -242,6 +225,63 @@ impl Store {
     }
 }
 
+/// The one way a worker takes something from the submissions table, shared by the job queue
+/// and the re-scoring: the oldest row that `available` admits, outside the datasets in `skip`,
+/// is changed by `set` and its id returned. Two workers never take the same row: PostgreSQL
+/// locks the row the subquery picks and skips rows other workers hold (`SKIP LOCKED`); SQLite
+/// runs one writer at a time, so the subquery and the update are atomic there.
+pub(super) struct Claim<'a> {
+    /// The assignments; `$1` is the worker, `$2`.. are `numbers`.
+    pub set: &'static str,
+    /// The condition a row must meet, over the same parameters.
+    pub available: &'static str,
+    pub worker: &'a str,
+    pub numbers: &'a [i64],
+    /// Datasets this worker cannot serve.
+    pub skip: &'a [i64],
+}
+
+impl Claim<'_> {
+    /// The statement, with one placeholder per skipped dataset after the fixed parameters
+    /// (only their count comes from the caller, never their values).
+    fn sql(&self, backend: Backend) -> String {
+        let lock = match backend {
+            Backend::Postgres => " FOR UPDATE SKIP LOCKED",
+            Backend::Sqlite => "",
+        };
+        let first = self.numbers.len() + 2;
+        let skipped = if self.skip.is_empty() {
+            String::new()
+        } else {
+            let marks: Vec<String> = (0..self.skip.len())
+                .map(|i| format!("${}", i + first))
+                .collect();
+            format!(" AND dataset_id NOT IN ({})", marks.join(", "))
+        };
+        format!(
+            "UPDATE submissions SET {} WHERE id = (SELECT id FROM submissions WHERE {}{skipped} \
+             ORDER BY id LIMIT 1{lock}) RETURNING id",
+            self.set, self.available
+        )
+    }
+
+    /// The id of the row taken, if any.
+    pub async fn run(self, store: &Store) -> StoreResult<Option<i64>> {
+        let sql = self.sql(store.backend);
+        let mut query = sqlx::query(sqlx::AssertSqlSafe(sql)).bind(self.worker);
+        for n in self.numbers {
+            query = query.bind(*n);
+        }
+        for id in self.skip {
+            query = query.bind(*id);
+        }
+        match query.fetch_optional(&store.pool).await? {
+            Some(row) => Ok(Some(row.try_get("id")?)),
+            None => Ok(None),
+        }
+    }
+}
+
 /// Inserts the scores of `finished` for submission `id` (whose old scores are gone): one row
 /// per protocol with its report, interval and replicates, and its per-object scores.
 pub(crate) async fn insert_scores(
@@ -383,4 +423,33 @@ async fn done_by(
             .await?
             .is_some(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_claim_numbers_the_skipped_datasets_after_its_parameters_and_locks_on_postgres() {
+        let claim = Claim {
+            set: "rescore_worker = $1, rescore_lease_until = $2",
+            available: "rescore = 1 AND rescore_attempts < $4",
+            worker: "w",
+            numbers: &[10, 5, 3],
+            skip: &[7, 9],
+        };
+        assert_eq!(
+            claim.sql(Backend::Postgres),
+            "UPDATE submissions SET rescore_worker = $1, rescore_lease_until = $2 WHERE id = \
+             (SELECT id FROM submissions WHERE rescore = 1 AND rescore_attempts < $4 AND \
+             dataset_id NOT IN ($5, $6) ORDER BY id LIMIT 1 FOR UPDATE SKIP LOCKED) RETURNING id"
+        );
+        let none = Claim { skip: &[], ..claim };
+        assert_eq!(
+            none.sql(Backend::Sqlite),
+            "UPDATE submissions SET rescore_worker = $1, rescore_lease_until = $2 WHERE id = \
+             (SELECT id FROM submissions WHERE rescore = 1 AND rescore_attempts < $4 \
+             ORDER BY id LIMIT 1) RETURNING id"
+        );
+    }
 }

@@ -12,9 +12,9 @@ use serde::Serialize;
 use sqlx::{Any, Row, Transaction};
 
 use super::pose_errors;
-use super::queue::{Finished, insert_scores};
+use super::queue::{Claim, Finished, insert_scores};
 use super::submissions::SubmissionRow;
-use super::{Backend, Store, StoreResult, parse_column};
+use super::{Store, StoreResult, parse_column};
 use crate::clock::now_ms;
 
 /// One number a re-scoring changed.
@@ -155,34 +155,20 @@ impl Store {
         skip: &[i64],
     ) -> StoreResult<Option<SubmissionRow>> {
         let now = now_ms();
-        let lock = match self.backend {
-            Backend::Postgres => " FOR UPDATE SKIP LOCKED",
-            // SQLite runs one writer at a time, so the subquery and the update are atomic.
-            Backend::Sqlite => "",
-        };
-        let skipped = if skip.is_empty() {
-            String::new()
-        } else {
-            let marks: Vec<String> = (0..skip.len()).map(|i| format!("${}", i + 5)).collect();
-            format!(" AND dataset_id NOT IN ({})", marks.join(", "))
-        };
-        let sql = format!(
-            "UPDATE submissions SET rescore_worker = $1, rescore_lease_until = $2, \
-             rescore_attempts = rescore_attempts + 1 \
-             WHERE id = (SELECT id FROM submissions WHERE rescore = 1 AND status = 'done' \
-             AND (rescore_lease_until IS NULL OR rescore_lease_until < $3) \
-             AND rescore_attempts < $4{skipped} ORDER BY id LIMIT 1{lock}) RETURNING id"
-        );
-        let mut query = sqlx::query(sqlx::AssertSqlSafe(sql))
-            .bind(worker)
-            .bind(now + lease_ms)
-            .bind(now)
-            .bind(max_attempts);
-        for id in skip {
-            query = query.bind(*id);
+        let claimed = Claim {
+            set: "rescore_worker = $1, rescore_lease_until = $2, \
+                  rescore_attempts = rescore_attempts + 1",
+            available: "rescore = 1 AND status = 'done' \
+                        AND (rescore_lease_until IS NULL OR rescore_lease_until < $3) \
+                        AND rescore_attempts < $4",
+            worker,
+            numbers: &[now + lease_ms, now, max_attempts],
+            skip,
         }
-        match query.fetch_optional(&self.pool).await? {
-            Some(row) => self.submission(row.try_get("id")?).await,
+        .run(self)
+        .await?;
+        match claimed {
+            Some(id) => self.submission(id).await,
             None => Ok(None),
         }
     }
