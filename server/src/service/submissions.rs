@@ -36,7 +36,7 @@ use crate::preflight::Preflight;
 use crate::service::publishing;
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
-use crate::store::submissions::{Created, CreatedAll, FairUse, NewSubmission, SubmissionRow};
+use crate::store::submissions::{CreatedAll, CreatedOne, FairUse, NewSubmission, SubmissionRow};
 
 /// Estimate evaluations per second assumed until this service has measured its own speed.
 const ASSUMED_SPEED: f64 = 250.0;
@@ -529,19 +529,14 @@ async fn store_all(
             ));
         }
     };
-    if created.iter().any(|c| matches!(c, Created::New(_))) {
+    if created.iter().any(|c| matches!(c, CreatedOne::New(_))) {
         app.wake.notify_waiters();
     }
     let mut accepted = Vec::with_capacity(created.len());
     for (c, k) in created.into_iter().zip(kept) {
         let (id, duplicate) = match c {
-            Created::New(id) => (id, false),
-            Created::Duplicate(id) => (id, true),
-            Created::Limited { .. } => {
-                return Err(AppError::Internal(
-                    "the store answered a limit among created submissions".into(),
-                ));
-            }
+            CreatedOne::New(id) => (id, false),
+            CreatedOne::Duplicate(id) => (id, true),
         };
         let mut submission = app
             .store

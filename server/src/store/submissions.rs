@@ -189,11 +189,29 @@ pub enum Created {
     Limited { times: Vec<i64> },
 }
 
+/// One submission of an upload that [`Store::create_submissions`] stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CreatedOne {
+    /// A new submission, queued.
+    New(i64),
+    /// The same file was already submitted for the method and dataset: that submission.
+    Duplicate(i64),
+}
+
+impl From<CreatedOne> for Created {
+    fn from(one: CreatedOne) -> Created {
+        match one {
+            CreatedOne::New(id) => Created::New(id),
+            CreatedOne::Duplicate(id) => Created::Duplicate(id),
+        }
+    }
+}
+
 /// What [`Store::create_submissions`] did: all of an upload, or nothing.
 #[derive(Debug, PartialEq)]
 pub enum CreatedAll {
-    /// Each one, in order (none is `Limited`).
-    All(Vec<Created>),
+    /// Each one, in order.
+    All(Vec<CreatedOne>),
     /// The `index`th was over the fair-use limit, so nothing was written; the counted
     /// submissions' times, oldest first.
     Limited { index: usize, times: Vec<i64> },
@@ -305,9 +323,11 @@ impl Store {
                 .await?
             {
                 // One in, one out.
-                CreatedAll::All(created) => {
-                    created.into_iter().next().ok_or(StoreError::NotFound)?
-                }
+                CreatedAll::All(created) => created
+                    .into_iter()
+                    .next()
+                    .ok_or(StoreError::NotFound)?
+                    .into(),
                 CreatedAll::Limited { times, .. } => Created::Limited { times },
             },
         )
@@ -341,11 +361,14 @@ impl Store {
         let mut meta_changed = false;
         for (index, new) in news.iter().enumerate() {
             match create_one(&mut tx, new, fair_use).await? {
-                (Created::Limited { times }, _) => {
+                One::Limited { times } => {
                     tx.rollback().await?;
                     return Ok(CreatedAll::Limited { index, times });
                 }
-                (c, changed) => {
+                One::Stored {
+                    created: c,
+                    meta_changed: changed,
+                } => {
                     meta_changed |= changed;
                     created.push(c);
                 }
@@ -591,14 +614,23 @@ impl Store {
     }
 }
 
-/// One submission of [`Store::create_submissions`] inside its transaction, and whether it
-/// changed its method's metadata; `Limited` writes nothing (the caller rolls back the whole
-/// upload).
+/// What [`create_one`] did inside the upload's transaction.
+enum One {
+    /// Stored (or found stored), and whether that changed the method's metadata.
+    Stored {
+        created: CreatedOne,
+        meta_changed: bool,
+    },
+    /// Over the fair-use limit: nothing was written (the caller rolls back the whole upload).
+    Limited { times: Vec<i64> },
+}
+
+/// One submission of [`Store::create_submissions`] inside its transaction.
 async fn create_one(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
     new: &NewSubmission<'_>,
     fair_use: Option<FairUse>,
-) -> StoreResult<(Created, bool)> {
+) -> StoreResult<One> {
     let method_id: Option<i64> =
         sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
             .bind(new.owner_id)
@@ -619,7 +651,10 @@ async fn create_one(
         .fetch_optional(&mut **tx)
         .await?;
         if let Some(row) = same {
-            return Ok((Created::Duplicate(row.try_get("id")?), false));
+            return Ok(One::Stored {
+                created: CreatedOne::Duplicate(row.try_get("id")?),
+                meta_changed: false,
+            });
         }
     }
     if let Some(limit) = fair_use {
@@ -636,7 +671,7 @@ async fn create_one(
         .map(|r| r.try_get("created_at"))
         .collect::<Result<_, _>>()?;
         if times.len() >= limit.limit {
-            return Ok((Created::Limited { times }, false));
+            return Ok(One::Limited { times });
         }
     }
     let now = now_ms();
@@ -693,7 +728,10 @@ async fn create_one(
     .try_get("id")?;
     // In the same transaction: no worker can find the job without its file.
     super::files::put_file(tx, new.file_sha256, new.file_size, new.file_gzip).await?;
-    Ok((Created::New(id), meta_changed))
+    Ok(One::Stored {
+        created: CreatedOne::New(id),
+        meta_changed,
+    })
 }
 
 /// Updates the metadata fields a new upload gives, hardware included; the others keep their
