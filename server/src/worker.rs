@@ -1,5 +1,23 @@
 //! The evaluation workers: they claim queued submissions from the store, evaluate them on the
 //! evaluation threads and store the scores. They run in the server process or alone (`poseboard
 //! worker`), so they depend on the services and the store, never on the web layer.
+//!
+//! The queue is the submissions table: a worker claims a row with a lease, renews the lease
+//! with a heartbeat that also records progress, and stores the scores, the per-estimate errors
+//! and the time the evaluation took in the same transaction that marks the row done. A worker
+//! that dies (crash, SIGKILL, restart) stops renewing; once its lease expires any worker, in
+//! this process or on another machine sharing the PostgreSQL database, takes the job up again.
+//! An idle worker re-scores submissions an older evaluator scored, under a lease of its own.
+//!
+//! Split by concern: `pool` starts the workers and runs the claim loop, `job` runs one
+//! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding
+//! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says.
 
-pub mod jobs;
+mod evaluation;
+mod job;
+mod lease;
+mod pool;
+mod rescoring;
+mod retry;
+
+pub use pool::spawn_workers;

@@ -112,7 +112,7 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
             crate::demo::setup::ensure_demo_submissions(&app).await?;
         }
         crate::service::rescoring::flag_stale(&app.store).await?;
-        let workers = crate::worker::jobs::spawn_workers(&app, &shutdown);
+        let workers = crate::worker::spawn_workers(&app, &shutdown);
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
@@ -147,7 +147,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
             tokio::spawn(crate::web::routes::ops::serve_alone(app.clone(), listener));
         }
         crate::service::rescoring::flag_stale(&app.store).await?;
-        join_all(crate::worker::jobs::spawn_workers(&app, &shutdown)).await;
+        join_all(crate::worker::spawn_workers(&app, &shutdown)).await;
         Ok(())
     });
     rt.shutdown_timeout(std::time::Duration::from_secs(1));
