@@ -11,10 +11,10 @@ use tokio::sync::{Mutex, Notify, OnceCell};
 use crate::board_cache::BoardCache;
 use crate::config::Config;
 use crate::datasets;
-use crate::datasets::config::{folder_options, is_dataset_folder};
+use crate::datasets::config::{LoadError, folder_options, is_dataset_folder};
 use crate::datasets::parsed_files::ParsedFiles;
 use crate::datasets::uploaded_file;
-use crate::error::{AppError, AppResult};
+use crate::error::{AppError, AppResult, Chain};
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
 
@@ -137,7 +137,7 @@ impl App {
                     tracing::info!(dataset = %row.name, targets = row.targets_count, "dataset registered")
                 }
                 Err(e) => {
-                    tracing::error!(folder = %folder.display(), error = %e, "dataset skipped")
+                    tracing::error!(folder = %folder.display(), error = %Chain(&e), "dataset skipped")
                 }
             }
         }
@@ -184,7 +184,7 @@ impl App {
                 Role::Worker => self.config.datasets_dir().join(&row.name),
             };
             self.load(folder.clone()).await?.map_err(|e| {
-                AppError::Internal(format!("dataset {} ({}): {e}", row.name, folder.display()))
+                AppError::failed(format!("dataset {} ({})", row.name, folder.display()), e)
             })
         })
         .await
@@ -198,10 +198,10 @@ impl App {
     }
 
     /// Loads and hashes the dataset in `folder` on the evaluation threads.
-    async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, String>> {
+    async fn load(&self, folder: PathBuf) -> AppResult<Result<Loaded, LoadError>> {
         self.on_pool("loading a dataset", move || {
             Ok(load(&folder).and_then(|ds| {
-                let content_hash = datasets::hash::content_hash(&ds)?;
+                let content_hash = datasets::hash::content_hash(&ds).map_err(LoadError::Hash)?;
                 Ok(Loaded {
                     dataset: Arc::new(ds),
                     content_hash,
@@ -229,9 +229,9 @@ impl App {
 }
 
 /// Loads the dataset in `folder` with the split its configuration file chooses.
-fn load(folder: &Path) -> Result<Dataset, String> {
+fn load(folder: &Path) -> Result<Dataset, LoadError> {
     let opts = folder_options(folder)?;
-    Dataset::load_with(folder, &opts).map_err(|e| e.to_string())
+    Ok(Dataset::load_with(folder, &opts)?)
 }
 
 /// The row registering `ds`, found in `folder` (without its content hash, which takes a pass

@@ -52,8 +52,38 @@ pub enum AppError {
     Store(StoreError),
     #[error("{0}")]
     Io(#[from] std::io::Error),
+    /// A fault of the service with no error behind it (a rule of the service itself broken).
     #[error("{0}")]
     Internal(String),
+    /// A fault of the service caused by another error, kept whole for the logs: `context`
+    /// says what the service was doing.
+    #[error("{context}")]
+    Failed {
+        context: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+/// An error followed by its causes, `what: why: root cause`, as the logs show it. A cause
+/// whose words the error above it already says is not repeated.
+pub struct Chain<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl std::fmt::Display for Chain<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut said = self.0.to_string();
+        f.write_str(&said)?;
+        let mut next = self.0.source();
+        while let Some(cause) = next {
+            let words = cause.to_string();
+            if !said.contains(&words) {
+                write!(f, ": {words}")?;
+            }
+            said = words;
+            next = cause.source();
+        }
+        Ok(())
+    }
 }
 
 /// A size in bytes as people say it: `64 MiB`, `512 KiB`, `100 bytes`.
@@ -83,12 +113,23 @@ impl From<FieldError> for AppError {
 }
 
 impl AppError {
+    /// A fault of the service while doing `context`, caused by `source`.
+    pub fn failed(
+        context: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> AppError {
+        AppError::Failed {
+            context: context.into(),
+            source: source.into(),
+        }
+    }
+
     /// A fault of the service (database, I/O, a bug), not of the request: logged with its
     /// cause, and never described to the client.
     pub fn is_internal(&self) -> bool {
         matches!(
             self,
-            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_)
+            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_) | AppError::Failed { .. }
         )
     }
 }

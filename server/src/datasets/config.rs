@@ -4,7 +4,7 @@
 //! `{"split_type": "primesense"}` for a T-LESS copy with several sensors, so that the choice
 //! lives with the data and holds for `serve`, `worker` and `eval` alike.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use evaluator::dataset::DatasetOptions;
 use serde::Deserialize;
@@ -41,23 +41,54 @@ impl SplitChoice {
     }
 }
 
+/// Why a folder's configuration file cannot be used. The message names the file and says the
+/// cause, as the operator or uploader reads it; the cause stays attached for the logs.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error(
+        "{}: {source}; expected {{\"split\": .., \"split_type\": .., \"targets_file\": ..}}",
+        path.display()
+    )]
+    Invalid {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Unreadable {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Why a dataset folder does not load: its configuration, its files (the evaluator says which
+/// and why), or a file its content hash reads.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Dataset(#[from] evaluator::Error),
+    /// The evaluator's hashing names the file it could not read, in words only.
+    #[error("{0}")]
+    Hash(String),
+}
+
 /// The choice written in `folder`'s configuration file (none when there is no file).
-pub fn folder_choice(folder: &Path) -> Result<SplitChoice, String> {
+pub fn folder_choice(folder: &Path) -> Result<SplitChoice, ConfigError> {
     let path = folder.join(CONFIG_FILE);
     match std::fs::read(&path) {
-        Ok(bytes) => serde_json::from_slice(&bytes).map_err(|e| {
-            format!(
-                "{}: {e}; expected {{\"split\": .., \"split_type\": .., \"targets_file\": ..}}",
-                path.display()
-            )
-        }),
+        Ok(bytes) => {
+            serde_json::from_slice(&bytes).map_err(|source| ConfigError::Invalid { path, source })
+        }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(SplitChoice::default()),
-        Err(e) => Err(format!("{}: {e}", path.display())),
+        Err(source) => Err(ConfigError::Unreadable { path, source }),
     }
 }
 
 /// The options to load `folder` with: its configuration file over the defaults.
-pub fn folder_options(folder: &Path) -> Result<DatasetOptions, String> {
+pub fn folder_options(folder: &Path) -> Result<DatasetOptions, ConfigError> {
     Ok(folder_choice(folder)?.options())
 }
 
@@ -70,8 +101,12 @@ pub fn is_dataset_folder(folder: &Path) -> bool {
 /// The 2D ground truth (`scene_gt_coco.json` per scene) of the dataset in `folder`, for the
 /// split its configuration chooses, with the masks decoded when `with_masks` (segmentation).
 /// The service ranks detection against the amodal boxes, as the BOP site does.
-pub fn coco_gt(folder: &Path, with_masks: bool) -> Result<evaluator::coco::CocoGt, String> {
+pub fn coco_gt(folder: &Path, with_masks: bool) -> Result<evaluator::coco::CocoGt, LoadError> {
     let opts = folder_options(folder)?;
-    evaluator::coco::CocoGt::load(folder, &opts, evaluator::coco::BboxType::Amodal, with_masks)
-        .map_err(|e| e.to_string())
+    Ok(evaluator::coco::CocoGt::load(
+        folder,
+        &opts,
+        evaluator::coco::BboxType::Amodal,
+        with_masks,
+    )?)
 }

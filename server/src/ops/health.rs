@@ -8,6 +8,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::app::App;
+use crate::error::Chain;
 
 /// A database that does not answer within this is taken to be unreachable (the pool would
 /// otherwise wait its full acquire timeout).
@@ -59,7 +60,7 @@ pub async fn readiness(app: &App) -> Readiness {
                 Ok(rows) => {
                     for row in rows {
                         if let Err(e) = app.dataset(&row).await {
-                            not_ready.push(fail("datasets", e.to_string()));
+                            not_ready.push(fail("datasets", Chain(&e).to_string()));
                         }
                     }
                 }

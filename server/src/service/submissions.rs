@@ -218,7 +218,7 @@ async fn unpack_archives(app: &App, files: Vec<UploadedFile>) -> AppResult<Vec<U
         // Inflating is CPU work and blocking reads: off the async threads.
         let unpacked = tokio::task::spawn_blocking(move || archive::unpack(&dir, &file, limit))
             .await
-            .map_err(|e| AppError::Internal(e.to_string()))??;
+            .map_err(|e| AppError::failed("unpacking a zip archive", e))??;
         out.extend(unpacked);
     }
     Ok(out)
@@ -284,7 +284,7 @@ async fn check(
         results::load_results(&path).map(|r| (r.estimates.len(), Preflight::of(&loaded, &r, &ps)))
     })
     .await
-    .map_err(|e| AppError::Internal(e.to_string()))?;
+    .map_err(|e| AppError::failed("checking a result file", e))?;
     let (estimates_count, preflight) = match parsed {
         Ok(r) => r,
         Err(evaluator::Error::Results(problems)) => {
@@ -309,7 +309,7 @@ async fn check(
                 problems: list,
             });
         }
-        Err(e) => return Err(AppError::Internal(e.to_string())),
+        Err(e) => return Err(AppError::failed("reading a result file", e)),
     };
     if estimates_count == 0 {
         return Err(AppError::Invalid {
@@ -355,7 +355,7 @@ async fn check_coco(
             Err(evaluator::Error::CocoResults(problems)) => {
                 return Err(entry_problems(&name, &problems));
             }
-            Err(e) => return Err(AppError::Internal(e.to_string())),
+            Err(e) => return Err(AppError::failed("reading a BOP'22 result file", e)),
         };
         let task = asked.unwrap_or(
             if results.entries.iter().any(|e| e.segmentation.is_some()) {
@@ -381,7 +381,7 @@ async fn check_coco(
         ))
     })
     .await
-    .map_err(|e| AppError::Internal(e.to_string()))?;
+    .map_err(|e| AppError::failed("checking a BOP'22 result file", e))?;
     let (estimates_count, task, preflight) = parsed?;
     if estimates_count == 0 {
         return Err(AppError::Invalid {
@@ -472,8 +472,8 @@ async fn store_all(
         let gzip =
             tokio::task::spawn_blocking(move || uploaded_file::compress(&std::fs::read(path)?))
                 .await
-                .map_err(|e| AppError::Internal(e.to_string()))?
-                .map_err(|e| AppError::Internal(format!("cannot store the upload: {e}")))?;
+                .map_err(|e| AppError::failed("compressing the upload", e))?
+                .map_err(|e| AppError::failed("compressing the upload", e))?;
         kept.push(Kept {
             name: file.name,
             sha256: file.sha256,

@@ -9,7 +9,7 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
 use crate::clock::now_ms;
-use crate::error::{AppError, LineProblem};
+use crate::error::{AppError, Chain, LineProblem};
 
 /// What the error pages are rendered from (attached to error responses).
 #[derive(Clone, Debug, Serialize)]
@@ -37,9 +37,10 @@ impl AppError {
             AppError::Invalid { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             AppError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             AppError::TimedOut(_) => StatusCode::REQUEST_TIMEOUT,
-            AppError::Store(_) | AppError::Io(_) | AppError::Internal(_) => {
-                StatusCode::INTERNAL_SERVER_ERROR
-            }
+            AppError::Store(_)
+            | AppError::Io(_)
+            | AppError::Internal(_)
+            | AppError::Failed { .. } => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
 
@@ -75,7 +76,7 @@ impl IntoResponse for AppError {
     fn into_response(self) -> Response {
         let status = self.status();
         if status.is_server_error() {
-            tracing::error!(error = %self, "request failed");
+            tracing::error!(error = %Chain(&self), "request failed");
         }
         let body = self.body();
         let mut response = (status, Json(body.clone())).into_response();
@@ -89,5 +90,73 @@ impl IntoResponse for AppError {
         }
         response.extensions_mut().insert(body);
         response
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Write;
+    use std::sync::{Arc, Mutex};
+
+    use axum::response::IntoResponse;
+
+    use super::*;
+
+    /// What the subscriber under test writes: the log lines.
+    #[derive(Clone, Default)]
+    struct Captured(Arc<Mutex<Vec<u8>>>);
+
+    impl Write for Captured {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().expect("log buffer").extend_from_slice(buf);
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn an_internal_error_is_logged_with_its_causes_and_answered_without_them() {
+        let cause = std::io::Error::other("disk /var/lib/poseboard is full");
+        let error = AppError::failed("compressing the upload", cause);
+        assert_eq!(
+            Chain(&error).to_string(),
+            "compressing the upload: disk /var/lib/poseboard is full"
+        );
+
+        let log = Captured::default();
+        let writer = log.clone();
+        let subscriber = tracing_subscriber::fmt()
+            .with_writer(move || writer.clone())
+            .with_ansi(false)
+            .finish();
+        let response = tracing::subscriber::with_default(subscriber, || error.into_response());
+        let logged = String::from_utf8(log.0.lock().expect("log buffer").clone()).expect("utf-8");
+        assert!(
+            logged.contains("compressing the upload: disk /var/lib/poseboard is full"),
+            "{logged}"
+        );
+
+        assert_eq!(response.status(), StatusCode::INTERNAL_SERVER_ERROR);
+        let page = response
+            .extensions()
+            .get::<ErrorBody>()
+            .expect("error body");
+        assert!(!page.error.contains("disk") && !page.error.contains("compressing"));
+        let bytes = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .expect("runtime")
+            .block_on(axum::body::to_bytes(response.into_body(), usize::MAX))
+            .expect("body");
+        let shown = String::from_utf8_lossy(&bytes);
+        assert!(!shown.contains("disk"), "{shown}");
+        assert!(!shown.contains("compressing"), "{shown}");
+    }
+
+    #[test]
+    fn a_chain_does_not_repeat_a_cause_its_error_already_says() {
+        let error = AppError::Io(std::io::Error::other("broken pipe"));
+        assert_eq!(Chain(&error).to_string(), "broken pipe");
     }
 }

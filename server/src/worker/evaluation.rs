@@ -19,6 +19,7 @@ use crate::app::{AppState, Role};
 use crate::datasets;
 use crate::datasets::uploaded_file;
 use crate::domain::CocoProtocol;
+use crate::error::Chain;
 use crate::store::pose_errors::NewErrors;
 use crate::store::queue::Finished;
 use crate::store::submissions::SubmissionRow;
@@ -62,12 +63,13 @@ pub(super) async fn evaluate(
         Ok(loaded) => loaded,
         Err(e) if app.role == Role::Worker => {
             return Err(JobError::Refused(format!(
-                "this worker has no usable copy of dataset `{}` in {}: {e}",
+                "this worker has no usable copy of dataset `{}` in {}: {}",
                 row.name,
-                app.config.datasets_dir().display()
+                app.config.datasets_dir().display(),
+                Chain(&e)
             )));
         }
-        Err(e) => return Err(JobError::Service(e.to_string())),
+        Err(e) => return Err(JobError::Service(Chain(&e).to_string())),
     };
     match &row.content_hash {
         Some(registered) if *registered != loaded.content_hash => {
@@ -158,7 +160,8 @@ async fn evaluate_coco(
             let results =
                 coco::parse_coco_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
             let with_masks = task == CocoProtocol::Segmentation;
-            let gt = datasets::config::coco_gt(&root, with_masks).map_err(JobError::Service)?;
+            let gt = datasets::config::coco_gt(&root, with_masks)
+                .map_err(|e| JobError::Service(e.to_string()))?;
             let report = coco::evaluate(&gt, &results, task.task()).map_err(|e| match e {
                 evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
                 other => JobError::Service(other.to_string()),

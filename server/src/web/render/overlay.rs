@@ -56,7 +56,7 @@ pub async fn target_png(
         .get_or_parse(sha256, move || async move {
             let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), sha256)
                 .await
-                .map_err(|e| AppError::Internal(e.to_string()))?;
+                .map_err(|e| AppError::failed("reading the stored result file", e))?;
             app.on_pool("parsing the stored file", move || {
                 results::parse_results(&bytes[..]).map_err(|p| {
                     AppError::Internal(format!("the stored file no longer parses: {p}"))
@@ -68,7 +68,7 @@ pub async fn target_png(
     app.on_pool("drawing the picture", move || {
         let n_top = Protocol::named(protocol).n_top;
         let picture = target_picture(&dataset, &results, &found, n_top)
-            .map_err(|e| AppError::Internal(e.to_string()))?;
+            .map_err(|e| AppError::failed("drawing a target picture", e))?;
         encode(&picture)
     })
     .await
@@ -76,7 +76,7 @@ pub async fn target_png(
 
 /// An 8-bit RGB PNG, compressed fast: it is drawn on request.
 fn encode(image: &RgbImage) -> AppResult<Vec<u8>> {
-    let failed = |e: png::EncodingError| AppError::Internal(format!("PNG: {e}"));
+    let failed = |e: png::EncodingError| AppError::failed("encoding a PNG", e);
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
     encoder.set_color(png::ColorType::Rgb);

@@ -237,7 +237,7 @@ async fn file(
     let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
     let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
         .await
-        .map_err(|e| AppError::Internal(e.to_string()))?;
+        .map_err(|e| AppError::failed("reading the uploaded file", e))?;
     let content_type = match s.task {
         Some(_) => "application/json",
         None => "text/csv; charset=utf-8",
@@ -258,7 +258,7 @@ async fn report(
         (Some(report), Some(task)) => serde_json::to_vec(&json!({ task.as_str(): report })),
         _ => serde_json::to_vec(&view.scores),
     }
-    .map_err(|e| AppError::Internal(format!("report JSON: {e}")))?;
+    .map_err(|e| AppError::failed("writing the report JSON", e))?;
     Ok(attachment(
         "application/json",
         &format!("submission-{id}-report.json"),
@@ -283,7 +283,7 @@ async fn errors(
     // Inflating is CPU work: off the async threads.
     let json = tokio::task::spawn_blocking(move || stored.json())
         .await
-        .map_err(|e| AppError::Internal(e.to_string()))??;
+        .map_err(|e| AppError::failed("inflating the errors", e))??;
     Ok(attachment(
         "application/json",
         &format!("submission-{id}-{}-errors.json", protocol.as_str()),
@@ -382,7 +382,7 @@ pub(crate) async fn leaderboard_json(
     filter: &views::BoardFilter,
 ) -> AppResult<Vec<u8>> {
     let board = views::leaderboard(app, protocol, filter).await?;
-    serde_json::to_vec(&board).map_err(|e| AppError::Internal(format!("leaderboard JSON: {e}")))
+    serde_json::to_vec(&board).map_err(|e| AppError::failed("writing the leaderboard JSON", e))
 }
 
 /// The OpenAPI description of this API, written by hand: it is small, and a generator would
