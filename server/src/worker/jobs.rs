@@ -33,7 +33,7 @@ use tracing::Instrument;
 use crate::app::{AppState, Role};
 use crate::datasets;
 use crate::datasets::uploaded_file;
-use crate::domain::CocoProtocol;
+use crate::domain::{CocoProtocol, DatasetId, SubmissionId};
 use crate::shutdown::Shutdown;
 use crate::store::StoreResult;
 use crate::store::pose_errors::NewErrors;
@@ -86,17 +86,17 @@ fn host_name() -> String {
 /// Datasets this process's workers refused, with when: their jobs are not claimed until
 /// [`REFUSAL_PAUSE`] has passed.
 #[derive(Default)]
-struct Refused(Mutex<HashMap<i64, Instant>>);
+struct Refused(Mutex<HashMap<DatasetId, Instant>>);
 
 impl Refused {
-    fn add(&self, dataset_id: i64) {
+    fn add(&self, dataset_id: DatasetId) {
         if let Ok(mut map) = self.0.lock() {
             map.insert(dataset_id, Instant::now());
         }
     }
 
     /// The datasets to leave alone now.
-    fn current(&self) -> Vec<i64> {
+    fn current(&self) -> Vec<DatasetId> {
         let Ok(mut map) = self.0.lock() else {
             return Vec::new();
         };
@@ -143,8 +143,11 @@ impl Worker {
                 .await
             {
                 Ok(Some(job)) => {
-                    let span =
-                        tracing::info_span!("job", submission = job.id, attempt = job.attempts);
+                    let span = tracing::info_span!(
+                        "job",
+                        submission = job.id.get(),
+                        attempt = job.attempts
+                    );
                     self.run_job(job).instrument(span).await
                 }
                 Ok(None) => {
@@ -155,7 +158,7 @@ impl Worker {
                         .await
                     {
                         Ok(Some(job)) => {
-                            let span = tracing::info_span!("rescore", submission = job.id);
+                            let span = tracing::info_span!("rescore", submission = job.id.get());
                             self.run_rescore(job).instrument(span).await;
                             continue;
                         }
@@ -184,7 +187,7 @@ impl Worker {
 
     async fn run_job(&self, job: SubmissionRow) {
         let (app, worker) = (&self.app, self.id.as_str());
-        tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
+        tracing::info!(%worker, submission = job.id.get(), attempt = job.attempts, "evaluation started");
         let timer = crate::ops::metrics::job_started(job.attempts);
         let job_state = JobState::new(job.protocols.len(), job.work);
         let beat = self.heartbeat(job.id, &job_state);
@@ -231,14 +234,14 @@ impl Worker {
                 .await
             }
             Err(JobError::Service(msg)) if job.attempts >= MAX_ATTEMPTS => {
-                tracing::error!(submission = id, error = %msg, "evaluation failed");
+                tracing::error!(submission = id.get(), error = %msg, "evaluation failed");
                 self.persist("store the failure", None, || {
                     app.store.fail(id, worker, &msg, Fault::Service)
                 })
                 .await
             }
             Err(JobError::Service(msg)) => {
-                tracing::error!(submission = id, attempt = job.attempts, error = %msg, "evaluation failed: queued for another attempt");
+                tracing::error!(submission = id.get(), attempt = job.attempts, error = %msg, "evaluation failed: queued for another attempt");
                 let requeued = self
                     .persist("queue the job again", None, || {
                         app.store.requeue(id, worker, &msg)
@@ -248,7 +251,7 @@ impl Worker {
                 requeued
             }
             Err(JobError::Refused(msg)) => {
-                tracing::warn!(%worker, submission = id, dataset = %job.dataset, "{msg}; the job is left to other workers");
+                tracing::warn!(%worker, submission = id.get(), dataset = %job.dataset, "{msg}; the job is left to other workers");
                 self.refused.add(job.dataset_id);
                 // The copy may be fixed by the time the pause is over: read it again then.
                 app.forget_dataset(job.dataset_id).await;
@@ -257,7 +260,7 @@ impl Worker {
             Err(JobError::Stopped) => {
                 let released = self.release(id).await;
                 if matches!(released, Ok(true)) {
-                    tracing::info!(submission = id, "stopping: job released to the queue");
+                    tracing::info!(submission = id.get(), "stopping: job released to the queue");
                 }
                 return;
             }
@@ -267,9 +270,14 @@ impl Worker {
             timer.ended(evaluated);
         }
         match stored {
-            Ok(true) => tracing::info!(submission = id, "job ended"),
-            Ok(false) => tracing::warn!(submission = id, "job was taken over; result discarded"),
-            Err(e) => tracing::error!(submission = id, error = %e, "cannot store the outcome"),
+            Ok(true) => tracing::info!(submission = id.get(), "job ended"),
+            Ok(false) => tracing::warn!(
+                submission = id.get(),
+                "job was taken over; result discarded"
+            ),
+            Err(e) => {
+                tracing::error!(submission = id.get(), error = %e, "cannot store the outcome")
+            }
         }
     }
 
@@ -278,7 +286,7 @@ impl Worker {
     /// and the differences recorded.
     async fn run_rescore(&self, job: SubmissionRow) {
         let (app, worker, id) = (&self.app, self.id.as_str(), job.id);
-        tracing::info!(%worker, submission = id, from = ?job.evaluator_version, "re-scoring started");
+        tracing::info!(%worker, submission = id.get(), from = ?job.evaluator_version, "re-scoring started");
         let state = JobState::new(job.protocols.len(), job.work);
         let beat = self.rescore_lease(id, &state);
         let outcome = tokio::select! {
@@ -305,7 +313,7 @@ impl Worker {
                     .await
                 {
                     Ok(Some(changes)) => {
-                        tracing::info!(submission = id, changes, "re-scored");
+                        tracing::info!(submission = id.get(), changes, "re-scored");
                         Ok(true)
                     }
                     Ok(None) => Ok(false),
@@ -313,26 +321,26 @@ impl Worker {
                 }
             }
             Err(JobError::Refused(msg)) => {
-                tracing::warn!(%worker, submission = id, "{msg}; the re-scoring is left to other workers");
+                tracing::warn!(%worker, submission = id.get(), "{msg}; the re-scoring is left to other workers");
                 self.refused.add(job.dataset_id);
                 app.forget_dataset(job.dataset_id).await;
                 let_go(false).await
             }
             Err(JobError::Stopped) => let_go(false).await,
             Err(JobError::User(msg) | JobError::Service(msg)) => {
-                tracing::error!(submission = id, error = %msg, "re-scoring failed");
+                tracing::error!(submission = id.get(), error = %msg, "re-scoring failed");
                 let_go(true).await
             }
             Err(JobError::TakenOver) => Ok(false),
         };
         if let Err(e) = stored {
-            tracing::error!(submission = id, error = %e, "cannot store the re-scoring");
+            tracing::error!(submission = id.get(), error = %e, "cannot store the re-scoring");
         }
     }
 
     /// Renews the re-scoring lease until aborted; cancels the evaluation when it is no longer
     /// this worker's.
-    fn rescore_lease(&self, id: i64, state: &JobState) -> JoinHandle<()> {
+    fn rescore_lease(&self, id: SubmissionId, state: &JobState) -> JoinHandle<()> {
         let (app, worker) = (self.app.clone(), self.id.clone());
         let (cancel, taken) = (state.cancel.clone(), state.taken_over.clone());
         tokio::spawn(async move {
@@ -352,7 +360,7 @@ impl Worker {
                         return;
                     }
                     Err(e) => {
-                        tracing::warn!(submission = id, error = %e, "re-scoring lease not renewed")
+                        tracing::warn!(submission = id.get(), error = %e, "re-scoring lease not renewed")
                     }
                 }
             }
@@ -361,7 +369,7 @@ impl Worker {
 
     /// Gives the job back without spending an attempt, trying for a short while only: a
     /// stopping process must not hang on a database that is gone (the lease then expires).
-    async fn release(&self, id: i64) -> StoreResult<bool> {
+    async fn release(&self, id: SubmissionId) -> StoreResult<bool> {
         let deadline = Instant::now() + RELEASE_GRACE;
         let released = self
             .persist("release the job", Some(deadline), || {
@@ -408,7 +416,7 @@ impl Worker {
     /// Renews the lease and publishes progress until aborted, in one small update every
     /// [`PROGRESS_EVERY`] (or a third of the lease, if shorter); cancels the evaluation when
     /// the job turns out to be another worker's.
-    fn heartbeat(&self, id: i64, state: &JobState) -> JoinHandle<()> {
+    fn heartbeat(&self, id: SubmissionId, state: &JobState) -> JoinHandle<()> {
         let (app, worker) = (self.app.clone(), self.id.clone());
         let (counter, started, cancel, taken) = (
             state.counter.clone(),
@@ -438,7 +446,7 @@ impl Worker {
                         return;
                     }
                     // The next beat tries again; a lease outlives two missed beats.
-                    Err(e) => tracing::warn!(submission = id, error = %e, "heartbeat failed"),
+                    Err(e) => tracing::warn!(submission = id.get(), error = %e, "heartbeat failed"),
                 }
             }
         })
@@ -455,7 +463,7 @@ impl Worker {
         loop {
             match self.evaluate_job(job, state).await {
                 Err(JobError::Service(msg)) if tries < TRIES_IN_PLACE => {
-                    tracing::warn!(submission = job.id, error = %msg, retry_in_ms = pause.as_millis() as u64, "evaluation failed: trying again");
+                    tracing::warn!(submission = job.id.get(), error = %msg, retry_in_ms = pause.as_millis() as u64, "evaluation failed: trying again");
                     tokio::time::sleep(pause).await;
                     pause *= 2;
                     tries += 1;
