@@ -23,7 +23,9 @@ use std::time::{Duration, Instant};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, Report, evaluate, results::load_results};
 use server::demo::{SynthOptions, write_dataset, write_demo_results};
-use server::domain::{Hardware, MethodName, Modality, TokenLabel, TrainingData, UserName};
+use server::domain::{
+    Hardware, MethodName, Modality, SubmissionId, TokenLabel, TrainingData, UserName,
+};
 use server::preflight::Preflight;
 use server::store::Store;
 use server::store::methods::MethodMeta;
@@ -440,7 +442,11 @@ impl Run {
 /// The account, the datasets and the 200 finished public submissions, written through the
 /// store before the server starts (the server's registration of the datasets folder keeps
 /// their ids). Returns an API token of the account and the submissions' ids.
-async fn populate(url: &str, datasets: &Path, reports: &[Report]) -> Res<(String, Vec<i64>)> {
+async fn populate(
+    url: &str,
+    datasets: &Path,
+    reports: &[Report],
+) -> Res<(String, Vec<SubmissionId>)> {
     let store = Store::connect(url).await?;
     store.migrate().await?;
     let reference = Dataset::load(&datasets.join("synthA"))?;

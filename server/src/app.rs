@@ -14,6 +14,7 @@ use crate::datasets;
 use crate::datasets::config::{LoadError, folder_options, is_dataset_folder};
 use crate::datasets::parsed_files::ParsedFiles;
 use crate::datasets::uploaded_file;
+use crate::domain::DatasetId;
 use crate::error::{AppError, AppResult, Chain};
 use crate::store::Store;
 use crate::store::datasets::DatasetRow;
@@ -33,7 +34,7 @@ pub struct App {
     /// The datasets this process has loaded, by id. Each slot is filled once: requests that
     /// arrive while a dataset loads wait for that load instead of reading and hashing the
     /// folder again (a large dataset takes seconds and much memory per load).
-    datasets: Mutex<HashMap<i64, Arc<OnceCell<Loaded>>>>,
+    datasets: Mutex<HashMap<DatasetId, Arc<OnceCell<Loaded>>>>,
 }
 
 /// What a process is: the server owns the datasets table and the uploads; a worker process
@@ -193,7 +194,7 @@ impl App {
 
     /// Forgets a loaded dataset, so that the next use reads the folder again (a worker whose
     /// copy was refused looks again later, once an operator may have fixed it).
-    pub async fn forget_dataset(&self, id: i64) {
+    pub async fn forget_dataset(&self, id: DatasetId) {
         self.datasets.lock().await.remove(&id);
     }
 
@@ -238,7 +239,7 @@ fn load(folder: &Path) -> Result<Dataset, LoadError> {
 /// over the files).
 pub fn describe(ds: &Dataset, folder: &Path) -> DatasetRow {
     DatasetRow {
-        id: 0,
+        id: DatasetId::new(0),
         name: ds.name.clone(),
         path: folder.display().to_string(),
         objects_count: ds.objects.len() as i64,

@@ -2,6 +2,10 @@
 //! the edge. Past the edge, a `MethodName` or a `Visibility` is known to be valid, so the
 //! services and the store never re-check or re-interpret strings.
 
+mod ids;
+
+pub use ids::{DatasetId, MethodId, SnapshotId, SubmissionId, UserId};
+
 use std::fmt;
 use std::str::FromStr;
 

@@ -11,7 +11,7 @@ use rand::RngCore;
 use sha2::{Digest, Sha256};
 
 use crate::clock::now_ms;
-use crate::domain::{Password, TokenLabel, UserName, normalized};
+use crate::domain::{Password, TokenLabel, UserId, UserName, normalized};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::{Counter, User};
 use crate::store::{Store, StoreError};
@@ -269,7 +269,7 @@ pub async fn register(
     name: &UserName,
     password: &Password,
     is_admin: bool,
-) -> AppResult<i64> {
+) -> AppResult<UserId> {
     let hash = hash_password(password).await?;
     match store.create_user(name, &hash, is_admin).await {
         Ok(id) => Ok(id),
@@ -287,7 +287,7 @@ pub async fn sign_up(
     name: &UserName,
     password: &Password,
     addr: IpAddr,
-) -> AppResult<i64> {
+) -> AppResult<UserId> {
     let key = format!("register:{addr}");
     count_attempt(store, &key, window_step(REGISTER_PER_ADDRESS)).await?;
     let id = register(store, name, password, false).await?;
@@ -298,7 +298,7 @@ pub async fn sign_up(
 }
 
 /// Mints a personal API token for a user: returned once, only its hash is kept.
-pub async fn create_token(store: &Store, user_id: i64, label: &TokenLabel) -> AppResult<String> {
+pub async fn create_token(store: &Store, user_id: UserId, label: &TokenLabel) -> AppResult<String> {
     let token = format!("{TOKEN_PREFIX}{}", new_secret());
     store
         .create_token(user_id, label, &sha256_hex(&token))

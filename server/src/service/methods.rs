@@ -3,17 +3,17 @@
 //! method is refused (403), and a method or submission they cannot see answers as missing.
 
 use crate::app::App;
-use crate::domain::MethodForm;
+use crate::domain::{MethodForm, MethodId, SubmissionId, UserId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
 
-fn may_change(user: &User, owner: Option<i64>) -> bool {
+fn may_change(user: &User, owner: Option<UserId>) -> bool {
     user.is_admin || owner == Some(user.id)
 }
 
 /// Replaces the details `form` gives (the others stay) and returns the method as stored.
-pub async fn edit(app: &App, user: &User, id: i64, form: MethodForm) -> AppResult<MethodRow> {
+pub async fn edit(app: &App, user: &User, id: MethodId, form: MethodForm) -> AppResult<MethodRow> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
     if !may_change(user, method.owner_id) {
         let public = !app.store.public_submissions_of_method(id).await?.is_empty();
@@ -30,7 +30,12 @@ pub async fn edit(app: &App, user: &User, id: i64, form: MethodForm) -> AppResul
 
 /// Pins a submission as its method's entry on its dataset (for every protocol), or unpins it:
 /// the best public finished submission is the entry again.
-pub async fn pin(app: &App, user: &User, submission_id: i64, pinned: bool) -> AppResult<()> {
+pub async fn pin(
+    app: &App,
+    user: &User,
+    submission_id: SubmissionId,
+    pinned: bool,
+) -> AppResult<()> {
     let submission = app
         .store
         .submission(submission_id)

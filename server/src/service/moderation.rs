@@ -4,6 +4,7 @@
 
 use crate::app::App;
 use crate::datasets::uploaded_file;
+use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
@@ -13,7 +14,7 @@ use crate::store::datasets::DatasetRow;
 pub async fn submission_action(
     app: &App,
     actor: &User,
-    id: i64,
+    id: SubmissionId,
     action: AdminAction,
 ) -> AppResult<()> {
     let done = match action {

@@ -7,7 +7,7 @@
 
 use crate::app::App;
 use crate::datasets::uploaded_file;
-use crate::domain::Visibility;
+use crate::domain::{SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::preflight::{Preflight, RedFlag};
 use crate::service::moderation;
@@ -45,7 +45,7 @@ pub fn initial(asked: Visibility, preflight: &Preflight) -> (Visibility, bool) {
 
 /// Submission `id` if `user` owns it or administers the service; 404 otherwise, whether it
 /// exists or not.
-pub async fn owned(app: &App, user: &User, id: i64) -> AppResult<SubmissionRow> {
+pub async fn owned(app: &App, user: &User, id: SubmissionId) -> AppResult<SubmissionRow> {
     match app.store.submission(id).await? {
         Some(s) if user.is_admin || s.owner_id == Some(user.id) => Ok(s),
         _ => Err(AppError::NotFound),
@@ -58,7 +58,7 @@ pub async fn owned(app: &App, user: &User, id: i64) -> AppResult<SubmissionRow> 
 pub async fn set_visibility(
     app: &App,
     user: &User,
-    id: i64,
+    id: SubmissionId,
     visibility: Visibility,
     confirm: bool,
 ) -> AppResult<SubmissionRow> {
@@ -92,7 +92,7 @@ pub async fn apply(
 
 /// Deletes a submission for its owner (or an administrator, recorded in the audit log): its
 /// file, scores and errors go with it, and the boards change.
-pub async fn delete(app: &App, user: &User, id: i64) -> AppResult<()> {
+pub async fn delete(app: &App, user: &User, id: SubmissionId) -> AppResult<()> {
     let s = owned(app, user, id).await?;
     if s.owner_id != Some(user.id) {
         return moderation::submission_action(app, user, id, AdminAction::Delete).await;

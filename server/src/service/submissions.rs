@@ -30,7 +30,7 @@ use crate::app::App;
 use crate::clock::now_ms;
 use crate::datasets;
 use crate::datasets::uploaded_file;
-use crate::domain::{CocoProtocol, Hardware, MethodName, Visibility};
+use crate::domain::{CocoProtocol, DatasetId, Hardware, MethodName, Visibility};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
 use crate::service::publishing;
@@ -105,7 +105,7 @@ pub struct Accepted {
 /// A file that passed every check, ready to be stored.
 struct Checked {
     file: UploadedFile,
-    dataset_id: i64,
+    dataset_id: DatasetId,
     /// The 2D task of a BOP'22 file (scored for it instead of the protocols).
     task: Option<CocoProtocol>,
     estimates_count: usize,
@@ -450,8 +450,8 @@ async fn store_all(
         hardware,
     } = *what;
     // The waiting time of each file counts the files of the upload before it.
-    let mut ahead = app.store.work_ahead(i64::MAX).await?;
-    let place = app.store.queue_place(i64::MAX).await?;
+    let mut ahead = app.store.work_ahead(None).await?;
+    let place = app.store.queue_place(None).await?;
     let speed = speed(app).await?;
     let mut kept = Vec::with_capacity(checked.len());
     for Checked {
@@ -579,7 +579,7 @@ struct Kept {
     sha256: String,
     size: u64,
     gzip: Vec<u8>,
-    dataset_id: i64,
+    dataset_id: DatasetId,
     task: Option<CocoProtocol>,
     estimates_count: usize,
     preflight: Preflight,

@@ -6,6 +6,7 @@
 //! API of one thing can never disagree.
 
 use crate::app::App;
+use crate::domain::{MethodId, SubmissionId, UserId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
@@ -13,12 +14,16 @@ use crate::store::submissions::SubmissionRow;
 
 /// Whether `reader` may see what `owner` owns beyond what is public: the owner and the
 /// administrators may.
-pub fn sees_private(reader: Option<&User>, owner: Option<i64>) -> bool {
+pub fn sees_private(reader: Option<&User>, owner: Option<UserId>) -> bool {
     reader.is_some_and(|u| u.is_admin || Some(u.id) == owner)
 }
 
 /// Submission `id` if `reader` may see it; otherwise missing.
-pub async fn submission(app: &App, id: i64, reader: Option<&User>) -> AppResult<SubmissionRow> {
+pub async fn submission(
+    app: &App,
+    id: SubmissionId,
+    reader: Option<&User>,
+) -> AppResult<SubmissionRow> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
     if !submission.is_public() && !sees_private(reader, submission.owner_id) {
         return Err(AppError::NotFound);
@@ -30,7 +35,7 @@ pub async fn submission(app: &App, id: i64, reader: Option<&User>) -> AppResult<
 /// list, whoever asks); otherwise missing.
 pub async fn method(
     app: &App,
-    id: i64,
+    id: MethodId,
     reader: Option<&User>,
 ) -> AppResult<(MethodRow, Vec<SubmissionRow>)> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;

@@ -7,11 +7,11 @@ use sqlx::Row;
 
 use super::{Store, StoreError, StoreResult};
 use crate::clock::now_ms;
-use crate::domain::{TokenLabel, UserName};
+use crate::domain::{TokenLabel, UserId, UserName};
 
 #[derive(Clone, Debug, Serialize)]
 pub struct User {
-    pub id: i64,
+    pub id: UserId,
     pub name: String,
     pub is_admin: bool,
 }
@@ -39,7 +39,7 @@ impl Store {
         name: &UserName,
         password_hash: &str,
         is_admin: bool,
-    ) -> StoreResult<i64> {
+    ) -> StoreResult<UserId> {
         let row = sqlx::query(
             "INSERT INTO users (name, password_hash, is_admin, created_at) VALUES ($1, $2, $3, $4) \
              ON CONFLICT (name) DO NOTHING RETURNING id",
@@ -75,7 +75,7 @@ impl Store {
 
     pub async fn create_session(
         &self,
-        user_id: i64,
+        user_id: UserId,
         secret_hash: &str,
         csrf_token: &str,
         ttl_ms: i64,
@@ -123,7 +123,7 @@ impl Store {
 
     pub async fn create_token(
         &self,
-        user_id: i64,
+        user_id: UserId,
         label: &TokenLabel,
         token_hash: &str,
     ) -> StoreResult<i64> {
@@ -150,7 +150,7 @@ impl Store {
         .fetch_optional(&self.pool)
         .await?;
         let Some(row) = row else { return Ok(None) };
-        let id: i64 = row.try_get("user_id")?;
+        let id: UserId = row.try_get("user_id")?;
         let row = sqlx::query("SELECT id, name, is_admin FROM users WHERE id = $1")
             .bind(id)
             .fetch_one(&self.pool)
@@ -158,7 +158,7 @@ impl Store {
         Ok(Some(user(&row)?))
     }
 
-    pub async fn tokens(&self, user_id: i64) -> StoreResult<Vec<TokenRow>> {
+    pub async fn tokens(&self, user_id: UserId) -> StoreResult<Vec<TokenRow>> {
         let rows = sqlx::query(
             "SELECT id, name, created_at, last_used_at, revoked_at FROM api_tokens \
              WHERE user_id = $1 ORDER BY id DESC",
@@ -180,7 +180,7 @@ impl Store {
     }
 
     /// Revokes one of the user's own tokens; false when there is no such live token.
-    pub async fn revoke_token(&self, user_id: i64, token_id: i64) -> StoreResult<bool> {
+    pub async fn revoke_token(&self, user_id: UserId, token_id: i64) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE api_tokens SET revoked_at = $1 WHERE id = $2 AND user_id = $3 AND revoked_at IS NULL",
         )

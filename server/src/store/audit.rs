@@ -8,6 +8,7 @@ use sqlx::Row;
 
 use super::{Store, StoreResult, parse_column};
 use crate::clock::now_ms;
+use crate::domain::UserId;
 
 /// What an administrator can do; stored as its name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -83,7 +84,12 @@ pub struct AuditEntry {
 }
 
 impl Store {
-    pub async fn audit(&self, actor_id: i64, action: AdminAction, target: &str) -> StoreResult<()> {
+    pub async fn audit(
+        &self,
+        actor_id: UserId,
+        action: AdminAction,
+        target: &str,
+    ) -> StoreResult<()> {
         sqlx::query("INSERT INTO audit_log (actor_id, action, target, at) VALUES ($1, $2, $3, $4)")
             .bind(actor_id)
             .bind(action.as_str())

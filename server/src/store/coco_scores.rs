@@ -10,21 +10,23 @@ use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
 use super::{Store, StoreError, StoreResult};
-use crate::domain::{CocoProtocol, Modality, TrainingData};
+use crate::domain::{
+    CocoProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
+};
 
 /// A method's entry on a dataset's board of a 2D task.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CocoBoardEntry {
-    pub method_id: i64,
+    pub method_id: MethodId,
     pub method: String,
     /// The name of the account the method belongs to.
     pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
     pub hardware: String,
-    pub dataset_id: i64,
+    pub dataset_id: DatasetId,
     pub dataset: String,
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     /// Its owner pinned it (otherwise it is the best).
     pub pinned: bool,
     /// Seconds per image; `None` when the file gave no time.
@@ -53,7 +55,10 @@ fn report(row: &AnyRow) -> StoreResult<CocoReport> {
 
 impl Store {
     /// The report of a submission of a 2D task, once scored.
-    pub async fn coco_report(&self, submission_id: i64) -> StoreResult<Option<CocoReport>> {
+    pub async fn coco_report(
+        &self,
+        submission_id: SubmissionId,
+    ) -> StoreResult<Option<CocoReport>> {
         sqlx::query("SELECT report_json FROM coco_scores WHERE submission_id = $1")
             .bind(submission_id)
             .fetch_optional(&self.pool)
@@ -64,7 +69,10 @@ impl Store {
     }
 
     /// The AP of every scored 2D submission of `owner`, by submission.
-    pub async fn coco_scores_of_owner(&self, owner: i64) -> StoreResult<Vec<(i64, f64)>> {
+    pub async fn coco_scores_of_owner(
+        &self,
+        owner: UserId,
+    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
         let rows = sqlx::query(
             "SELECT c.submission_id, c.ap FROM coco_scores c \
              JOIN submissions s ON s.id = c.submission_id WHERE s.owner_id = $1 \
@@ -82,9 +90,9 @@ impl Store {
     pub async fn coco_entry(
         &self,
         task: CocoProtocol,
-        method_id: i64,
-        dataset_id: i64,
-    ) -> StoreResult<Option<(i64, bool)>> {
+        method_id: MethodId,
+        dataset_id: DatasetId,
+    ) -> StoreResult<Option<(SubmissionId, bool)>> {
         let sql = format!(
             "SELECT {ENTRY_SQL} AS entry, (SELECT p.submission_id FROM entry_pins p \
              WHERE p.method_id = $2 AND p.dataset_id = $3) AS pin \
@@ -96,8 +104,8 @@ impl Store {
             .bind(dataset_id)
             .fetch_one(&self.pool)
             .await?;
-        let entry: Option<i64> = row.try_get("entry")?;
-        let pin: Option<i64> = row.try_get("pin")?;
+        let entry: Option<SubmissionId> = row.try_get("entry")?;
+        let pin: Option<SubmissionId> = row.try_get("pin")?;
         Ok(entry.map(|id| (id, pin == Some(id))))
     }
 
@@ -106,7 +114,7 @@ impl Store {
     pub async fn coco_leaderboard(
         &self,
         task: CocoProtocol,
-        dataset_id: Option<i64>,
+        dataset_id: Option<DatasetId>,
     ) -> StoreResult<Vec<CocoBoardEntry>> {
         let sql = format!(
             "SELECT c.submission_id, c.time_avg, c.report_json, s.method_id, m.name AS method, \
@@ -123,7 +131,7 @@ impl Store {
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(task.as_str())
-            .bind(dataset_id.unwrap_or(-1))
+            .bind(dataset_id.map_or(-1, DatasetId::get))
             .fetch_all(&self.pool)
             .await?;
         rows.iter()

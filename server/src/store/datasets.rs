@@ -8,10 +8,11 @@ use sqlx::any::AnyRow;
 
 use super::{Store, StoreResult};
 use crate::clock::now_ms;
+use crate::domain::DatasetId;
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct DatasetRow {
-    pub id: i64,
+    pub id: DatasetId,
     pub name: String,
     #[serde(skip)]
     pub path: String,
@@ -164,7 +165,7 @@ impl Store {
     }
 
     /// A dataset by id, served or retired (old submissions still name it).
-    pub async fn dataset(&self, id: i64) -> StoreResult<Option<DatasetRow>> {
+    pub async fn dataset(&self, id: DatasetId) -> StoreResult<Option<DatasetRow>> {
         let row = sqlx::query("SELECT * FROM datasets WHERE id = $1")
             .bind(id)
             .fetch_optional(&self.pool)

@@ -6,18 +6,19 @@ use sqlx::any::AnyRow;
 
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{
-    Description, Link, MethodDetails, MethodForm, Modality, ModelScope, TrainingData,
+    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, TrainingData,
+    UserId,
 };
 
 /// A method as the BOP site shows it: who submits it and how it works.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MethodRow {
-    pub id: i64,
+    pub id: MethodId,
     pub name: String,
     /// The name of the account it belongs to (empty for a method from before accounts).
     pub owner: String,
     #[serde(skip)]
-    pub owner_id: Option<i64>,
+    pub owner_id: Option<UserId>,
     pub description: String,
     pub authors: String,
     pub year: Option<i64>,
@@ -108,7 +109,7 @@ pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
 }
 
 impl Store {
-    pub async fn method(&self, id: i64) -> StoreResult<Option<MethodRow>> {
+    pub async fn method(&self, id: MethodId) -> StoreResult<Option<MethodRow>> {
         let row = sqlx::query(sqlx::AssertSqlSafe(format!(
             "{SELECT_METHOD} WHERE m.id = $1"
         )))
@@ -130,7 +131,7 @@ impl Store {
     }
 
     /// Replaces a method's details (the boards show some of them).
-    pub async fn set_method_details(&self, id: i64, d: &MethodDetails) -> StoreResult<bool> {
+    pub async fn set_method_details(&self, id: MethodId, d: &MethodDetails) -> StoreResult<bool> {
         let word = |w: Option<&'static str>| w.unwrap_or_default();
         let mut tx = self.write_transaction().await?;
         let done = sqlx::query(

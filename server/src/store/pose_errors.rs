@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use super::{Store, StoreError, StoreResult, parse_column};
+use crate::domain::SubmissionId;
 
 /// One evaluated estimate with its errors, as `poseboard eval --errors-out` writes it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -34,7 +35,7 @@ pub struct ErrorRow {
 /// The stored errors of one submission under one protocol.
 #[derive(Clone, Debug)]
 pub struct StoredErrors {
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     pub protocol: ProtocolName,
     pub rows_count: i64,
     /// The JSON array of rows, gzip-compressed.
@@ -110,7 +111,7 @@ pub struct NewErrors {
 /// Replaces the stored errors of submission `id` inside the transaction storing its scores.
 pub(super) async fn replace(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
-    id: i64,
+    id: SubmissionId,
     errors: &[NewErrors],
     now: i64,
 ) -> StoreResult<()> {
@@ -138,7 +139,7 @@ impl Store {
     /// The errors of submission `id` under `protocol`, if it was evaluated under it.
     pub async fn estimate_errors(
         &self,
-        id: i64,
+        id: SubmissionId,
         protocol: ProtocolName,
     ) -> StoreResult<Option<StoredErrors>> {
         let row = sqlx::query(

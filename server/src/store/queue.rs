@@ -15,6 +15,7 @@ use super::pose_errors::{self, NewErrors};
 use super::submissions::{Fault, SubmissionRow};
 use super::{Backend, Store, StoreError, StoreResult};
 use crate::clock::now_ms;
+use crate::domain::{DatasetId, SubmissionId};
 
 /// A finished evaluation, as [`Store::finish`] stores it.
 pub struct Finished {
@@ -43,7 +44,7 @@ impl Store {
         worker: &str,
         lease_ms: i64,
         max_attempts: i64,
-        skip: &[i64],
+        skip: &[DatasetId],
     ) -> StoreResult<Option<SubmissionRow>> {
         let now = now_ms();
         sqlx::query(
@@ -75,7 +76,7 @@ impl Store {
     /// evaluations done); false when the job is no longer this worker's.
     pub async fn heartbeat(
         &self,
-        id: i64,
+        id: SubmissionId,
         worker: &str,
         lease_ms: i64,
         progress: f64,
@@ -99,7 +100,12 @@ impl Store {
     /// transaction that only commits if the job is still this worker's: a job taken over after
     /// a lost lease never ends up with two score sets. The same transaction bumps the board
     /// version. (A failed job needs no bump: it was running, so no board showed it.)
-    pub async fn finish(&self, id: i64, worker: &str, finished: &Finished) -> StoreResult<bool> {
+    pub async fn finish(
+        &self,
+        id: SubmissionId,
+        worker: &str,
+        finished: &Finished,
+    ) -> StoreResult<bool> {
         let reports = &finished.reports;
         let work: i64 = reports.iter().map(|r| r.estimates_evaluated as i64).sum();
         let mut tx = self.write_transaction().await?;
@@ -127,7 +133,7 @@ impl Store {
     /// boards, in the transaction that marks the job done and bumps the board version.
     pub async fn finish_coco(
         &self,
-        id: i64,
+        id: SubmissionId,
         worker: &str,
         report: &CocoReport,
         eval_ms: i64,
@@ -173,7 +179,7 @@ impl Store {
     /// Marks the job failed with a reason; false when it is no longer this worker's.
     pub async fn fail(
         &self,
-        id: i64,
+        id: SubmissionId,
         worker: &str,
         error: &str,
         fault: Fault,
@@ -195,7 +201,7 @@ impl Store {
     /// Gives the job back to the queue without counting the attempt (this worker stops for
     /// its own reasons: it is shutting down, or its copy of the dataset differs); false when it
     /// is no longer this worker's.
-    pub async fn release(&self, id: i64, worker: &str) -> StoreResult<bool> {
+    pub async fn release(&self, id: SubmissionId, worker: &str) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
              progress = 0, work_done = 0, attempts = attempts - 1, \
@@ -211,7 +217,7 @@ impl Store {
 
     /// Puts the job back to the queue for another try, the attempt counted (a failure of the
     /// service that retrying in place did not cure); false when it is no longer this worker's.
-    pub async fn requeue(&self, id: i64, worker: &str, error: &str) -> StoreResult<bool> {
+    pub async fn requeue(&self, id: SubmissionId, worker: &str, error: &str) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', worker = NULL, lease_until = NULL, \
              progress = 0, work_done = 0, error = $1 WHERE id = $2 AND worker = $3 AND status = 'running'",
@@ -238,7 +244,7 @@ pub(super) struct Claim<'a> {
     pub worker: &'a str,
     pub numbers: &'a [i64],
     /// Datasets this worker cannot serve.
-    pub skip: &'a [i64],
+    pub skip: &'a [DatasetId],
 }
 
 impl Claim<'_> {
@@ -266,7 +272,7 @@ impl Claim<'_> {
     }
 
     /// The id of the row taken, if any.
-    pub async fn run(self, store: &Store) -> StoreResult<Option<i64>> {
+    pub async fn run(self, store: &Store) -> StoreResult<Option<SubmissionId>> {
         let sql = self.sql(store.backend);
         let mut query = sqlx::query(sqlx::AssertSqlSafe(sql)).bind(self.worker);
         for n in self.numbers {
@@ -286,7 +292,7 @@ impl Claim<'_> {
 /// per protocol with its report, interval and replicates, and its per-object scores.
 pub(crate) async fn insert_scores(
     tx: &mut Transaction<'static, Any>,
-    id: i64,
+    id: SubmissionId,
     finished: &Finished,
     now: i64,
 ) -> StoreResult<()> {
@@ -385,7 +391,7 @@ pub(crate) fn replicates_from(bytes: &[u8]) -> Option<Vec<f64>> {
 /// Marks a running job of `worker` done; false when it is not (or no longer) its.
 async fn mark_done(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
-    id: i64,
+    id: SubmissionId,
     worker: &str,
     work: i64,
     eval_ms: i64,
@@ -412,7 +418,7 @@ async fn mark_done(
 /// Whether the job is done by `worker` already.
 async fn done_by(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
-    id: i64,
+    id: SubmissionId,
     worker: &str,
 ) -> StoreResult<bool> {
     Ok(
@@ -436,7 +442,7 @@ mod tests {
             available: "rescore = 1 AND rescore_attempts < $4",
             worker: "w",
             numbers: &[10, 5, 3],
-            skip: &[7, 9],
+            skip: &[DatasetId::new(7), DatasetId::new(9)],
         };
         assert_eq!(
             claim.sql(Backend::Postgres),

@@ -16,11 +16,12 @@ use super::queue::{Claim, Finished, insert_scores};
 use super::submissions::SubmissionRow;
 use super::{Store, StoreResult, parse_column};
 use crate::clock::now_ms;
+use crate::domain::{DatasetId, SubmissionId, UserId};
 
 /// One number a re-scoring changed.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ScoreChange {
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     pub method: String,
     pub dataset: String,
     pub protocol: ProtocolName,
@@ -38,7 +39,7 @@ pub struct ScoreChange {
 /// own, an administrator all.
 #[derive(Clone, Copy, Debug)]
 pub struct Reader {
-    pub user_id: Option<i64>,
+    pub user_id: Option<UserId>,
     pub admin: bool,
 }
 
@@ -49,7 +50,7 @@ struct Stored {
     intervals: BTreeMap<String, (Option<f64>, Option<f64>)>,
 }
 
-async fn stored(tx: &mut Transaction<'static, Any>, id: i64) -> StoreResult<Stored> {
+async fn stored(tx: &mut Transaction<'static, Any>, id: SubmissionId) -> StoreResult<Stored> {
     let mut out = Stored::default();
     let rows = sqlx::query(
         "SELECT protocol, score, recall, ar_vsd, ar_mssd, ar_mspd, time_avg, ci_low, ci_high \
@@ -152,7 +153,7 @@ impl Store {
         worker: &str,
         lease_ms: i64,
         max_attempts: i64,
-        skip: &[i64],
+        skip: &[DatasetId],
     ) -> StoreResult<Option<SubmissionRow>> {
         let now = now_ms();
         let claimed = Claim {
@@ -175,7 +176,12 @@ impl Store {
 
     /// Extends the re-scoring lease; false when it is no longer this worker's (taken over, or
     /// the submission was re-run or deleted meanwhile).
-    pub async fn renew_rescore(&self, id: i64, worker: &str, lease_ms: i64) -> StoreResult<bool> {
+    pub async fn renew_rescore(
+        &self,
+        id: SubmissionId,
+        worker: &str,
+        lease_ms: i64,
+    ) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET rescore_lease_until = $1 \
              WHERE id = $2 AND rescore_worker = $3 AND rescore = 1 AND status = 'done'",
@@ -190,7 +196,12 @@ impl Store {
 
     /// Lets go of a re-scoring: `count` says whether the try counts as one of its attempts
     /// (it failed) or not (this worker stops or cannot serve the dataset).
-    pub async fn drop_rescore(&self, id: i64, worker: &str, count: bool) -> StoreResult<bool> {
+    pub async fn drop_rescore(
+        &self,
+        id: SubmissionId,
+        worker: &str,
+        count: bool,
+    ) -> StoreResult<bool> {
         let done = sqlx::query(
             "UPDATE submissions SET rescore_worker = NULL, rescore_lease_until = NULL, \
              rescore_attempts = rescore_attempts - $1 WHERE id = $2 AND rescore_worker = $3",
@@ -210,7 +221,7 @@ impl Store {
     /// this worker's.
     pub async fn finish_rescore(
         &self,
-        id: i64,
+        id: SubmissionId,
         worker: &str,
         finished: &Finished,
     ) -> StoreResult<Option<usize>> {
@@ -287,7 +298,7 @@ impl Store {
              ORDER BY c.id DESC LIMIT $3",
         )
         .bind(i64::from(reader.admin))
-        .bind(reader.user_id.unwrap_or(-1))
+        .bind(reader.user_id.map_or(-1, UserId::get))
         .bind(limit)
         .fetch_all(&self.pool)
         .await?;

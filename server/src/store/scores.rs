@@ -14,13 +14,13 @@ use sqlx::any::AnyRow;
 use super::methods::optional_column;
 use super::queue::replicates_from;
 use super::{Store, StoreError, StoreResult, parse_column};
-use crate::domain::{Modality, TrainingData};
+use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId};
 
 /// One protocol's headline numbers of a submission.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ScoreRow {
     pub id: i64,
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     pub protocol: ProtocolName,
     pub score: f64,
     pub recall: Option<f64>,
@@ -58,7 +58,7 @@ const SCORE_COLUMNS: &str = "sc.id AS score_id, sc.submission_id, sc.protocol, s
 /// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BoardEntry {
-    pub method_id: i64,
+    pub method_id: MethodId,
     pub method: String,
     /// The name of the account the method belongs to.
     pub owner: String,
@@ -66,9 +66,9 @@ pub struct BoardEntry {
     pub modality: Option<Modality>,
     /// The method's hardware.
     pub hardware: String,
-    pub dataset_id: i64,
+    pub dataset_id: DatasetId,
     pub dataset: String,
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     pub submitted_at: i64,
     /// Its owner pinned it (otherwise it is the best).
     pub pinned: bool,
@@ -80,7 +80,7 @@ pub struct BoardEntry {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Entry {
     pub protocol: ProtocolName,
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     /// Pinned by the method's owner; otherwise the best.
     pub pinned: bool,
 }
@@ -146,7 +146,7 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
 
 impl Store {
     /// The headline scores of every submission of `owner`, by submission, then protocol.
-    pub async fn scores_of_owner(&self, owner: i64) -> StoreResult<Vec<ScoreRow>> {
+    pub async fn scores_of_owner(&self, owner: UserId) -> StoreResult<Vec<ScoreRow>> {
         let sql = format!(
             "SELECT {SCORE_COLUMNS} FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol"
@@ -159,7 +159,7 @@ impl Store {
     }
 
     /// The reproducibility records of a submission's scores, one per protocol.
-    pub async fn score_records(&self, id: i64) -> StoreResult<Vec<ScoreRecord>> {
+    pub async fn score_records(&self, id: SubmissionId) -> StoreResult<Vec<ScoreRecord>> {
         let sql = format!(
             "SELECT {SCORE_COLUMNS} FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
              WHERE sc.submission_id = $1 ORDER BY sc.protocol"
@@ -172,7 +172,7 @@ impl Store {
     }
 
     /// The reports of a submission, one per protocol it was evaluated under.
-    pub async fn reports_of_submission(&self, id: i64) -> StoreResult<Vec<Report>> {
+    pub async fn reports_of_submission(&self, id: SubmissionId) -> StoreResult<Vec<Report>> {
         let rows = sqlx::query(
             "SELECT report_json FROM scores WHERE submission_id = $1 ORDER BY protocol",
         )
@@ -195,7 +195,7 @@ impl Store {
     pub async fn leaderboard(
         &self,
         protocol: ProtocolName,
-        dataset_id: Option<i64>,
+        dataset_id: Option<DatasetId>,
     ) -> StoreResult<Vec<BoardEntry>> {
         let sql = format!(
             "SELECT {SCORE_COLUMNS}, s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
@@ -212,7 +212,7 @@ impl Store {
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(protocol.as_str())
-            .bind(dataset_id.unwrap_or(-1))
+            .bind(dataset_id.map_or(-1, DatasetId::get))
             .fetch_all(&self.pool)
             .await?;
         let mut entries: Vec<BoardEntry> = Vec::new();
@@ -278,7 +278,11 @@ impl Store {
     }
 
     /// The entries, per protocol, of a method on a dataset.
-    pub async fn entries(&self, method_id: i64, dataset_id: i64) -> StoreResult<Vec<Entry>> {
+    pub async fn entries(
+        &self,
+        method_id: MethodId,
+        dataset_id: DatasetId,
+    ) -> StoreResult<Vec<Entry>> {
         let sql = format!(
             "SELECT sc.protocol, s.id AS submission_id, {PINNED_SQL} AS pinned \
              FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
@@ -302,7 +306,7 @@ impl Store {
     }
 
     /// Whether the submission is pinned as its method's entry on its dataset.
-    pub async fn is_pinned(&self, submission_id: i64) -> StoreResult<bool> {
+    pub async fn is_pinned(&self, submission_id: SubmissionId) -> StoreResult<bool> {
         let row = sqlx::query("SELECT submission_id FROM entry_pins WHERE submission_id = $1")
             .bind(submission_id)
             .fetch_optional(&self.pool)
@@ -312,7 +316,7 @@ impl Store {
 
     /// Pins a submission as its method's entry on its dataset (`pin`), or removes that pin if
     /// it is this submission's; true when the boards change.
-    pub async fn set_pinned(&self, submission_id: i64, pin: bool) -> StoreResult<bool> {
+    pub async fn set_pinned(&self, submission_id: SubmissionId, pin: bool) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let done = if pin {
             sqlx::query(

@@ -6,7 +6,7 @@ use serde::Serialize;
 use sqlx::Row;
 
 use super::{Store, StoreResult, parse_column};
-use crate::domain::BoardProtocol;
+use crate::domain::{BoardProtocol, SnapshotId, UserId};
 
 /// Which rendering of a board a snapshot holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,7 +36,7 @@ pub struct SnapshotBoard {
 /// A complete snapshot, without its bytes.
 #[derive(Clone, Debug, Serialize)]
 pub struct SnapshotRow {
-    pub id: i64,
+    pub id: SnapshotId,
     pub taken_at: i64,
     /// The administrator who took it.
     pub taken_by: String,
@@ -47,7 +47,7 @@ pub struct SnapshotRow {
 impl Store {
     /// Starts a snapshot: its id (which its pages name) before its boards are rendered. It is
     /// shown nowhere until [`Store::complete_snapshot`].
-    pub async fn begin_snapshot(&self, taken_by: i64, taken_at: i64) -> StoreResult<i64> {
+    pub async fn begin_snapshot(&self, taken_by: UserId, taken_at: i64) -> StoreResult<SnapshotId> {
         let row = sqlx::query(
             "INSERT INTO snapshots (taken_at, taken_by, complete) VALUES ($1, $2, 0) RETURNING id",
         )
@@ -59,7 +59,11 @@ impl Store {
     }
 
     /// Stores every board of snapshot `id` and makes it visible, all at once.
-    pub async fn complete_snapshot(&self, id: i64, boards: &[SnapshotBoard]) -> StoreResult<()> {
+    pub async fn complete_snapshot(
+        &self,
+        id: SnapshotId,
+        boards: &[SnapshotBoard],
+    ) -> StoreResult<()> {
         let mut tx = self.write_transaction().await?;
         for b in boards {
             sqlx::query(
@@ -83,7 +87,7 @@ impl Store {
     }
 
     /// Drops a snapshot whose boards could not all be rendered.
-    pub async fn discard_snapshot(&self, id: i64) -> StoreResult<()> {
+    pub async fn discard_snapshot(&self, id: SnapshotId) -> StoreResult<()> {
         sqlx::query("DELETE FROM snapshots WHERE id = $1 AND complete = 0")
             .bind(id)
             .execute(&self.pool)
@@ -101,7 +105,7 @@ impl Store {
         .await?;
         let mut out = Vec::with_capacity(rows.len());
         for r in &rows {
-            let id: i64 = r.try_get("id")?;
+            let id: SnapshotId = r.try_get("id")?;
             out.push(SnapshotRow {
                 id,
                 taken_at: r.try_get("taken_at")?,
@@ -113,7 +117,7 @@ impl Store {
     }
 
     /// A complete snapshot.
-    pub async fn snapshot(&self, id: i64) -> StoreResult<Option<SnapshotRow>> {
+    pub async fn snapshot(&self, id: SnapshotId) -> StoreResult<Option<SnapshotRow>> {
         let row = sqlx::query(
             "SELECT s.id, s.taken_at, u.name FROM snapshots s JOIN users u ON u.id = s.taken_by \
              WHERE s.id = $1 AND s.complete = 1",
@@ -132,7 +136,7 @@ impl Store {
         }))
     }
 
-    async fn snapshot_boards(&self, id: i64) -> StoreResult<Vec<(BoardProtocol, String)>> {
+    async fn snapshot_boards(&self, id: SnapshotId) -> StoreResult<Vec<(BoardProtocol, String)>> {
         let rows = sqlx::query(
             "SELECT DISTINCT protocol, dataset FROM snapshot_boards WHERE snapshot_id = $1 \
              ORDER BY protocol, dataset",
@@ -153,7 +157,7 @@ impl Store {
     /// The stored bytes (gzip-compressed) of one board of a complete snapshot.
     pub async fn snapshot_board(
         &self,
-        id: i64,
+        id: SnapshotId,
         protocol: BoardProtocol,
         dataset: &str,
         format: BoardFormat,

@@ -16,7 +16,9 @@ use super::board_version;
 use super::methods::MethodMeta;
 use super::{Backend, Store, StoreError, StoreResult, parse_column};
 use crate::clock::now_ms;
-use crate::domain::{CocoProtocol, Hardware, MethodName, Visibility};
+use crate::domain::{
+    CocoProtocol, DatasetId, Hardware, MethodId, MethodName, SubmissionId, UserId, Visibility,
+};
 use crate::preflight::Preflight;
 
 /// Lifecycle of a submission (which is also its evaluation job).
@@ -92,10 +94,10 @@ impl FromStr for Fault {
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SubmissionRow {
-    pub id: i64,
-    pub method_id: i64,
+    pub id: SubmissionId,
+    pub method_id: MethodId,
     pub method: String,
-    pub dataset_id: i64,
+    pub dataset_id: DatasetId,
     pub dataset: String,
     /// The 6D protocols it is evaluated under (none for a 2D task).
     pub protocols: Vec<ProtocolName>,
@@ -118,7 +120,7 @@ pub struct SubmissionRow {
     /// The hardware the reported times come from.
     pub hardware: String,
     #[serde(skip)]
-    pub owner_id: Option<i64>,
+    pub owner_id: Option<UserId>,
     /// Hidden by an administrator: shown to its owner and the administrators only.
     pub hidden: bool,
     /// Its owner asked for publication, but the pre-flight's red flags hold it back until
@@ -142,10 +144,10 @@ impl SubmissionRow {
 
 /// A submission to create, with the method it is for.
 pub struct NewSubmission<'a> {
-    pub owner_id: i64,
+    pub owner_id: UserId,
     pub method: &'a MethodName,
     pub meta: &'a MethodMeta,
-    pub dataset_id: i64,
+    pub dataset_id: DatasetId,
     pub protocols: &'a [ProtocolName],
     /// A 2D task instead of the protocols.
     pub task: Option<CocoProtocol>,
@@ -182,9 +184,9 @@ pub struct FairUse {
 #[derive(Debug, PartialEq)]
 pub enum Created {
     /// A new submission, queued.
-    New(i64),
+    New(SubmissionId),
     /// The same file was already submitted for the method and dataset: that submission.
-    Duplicate(i64),
+    Duplicate(SubmissionId),
     /// Over the fair-use limit: nothing was written; the counted submissions' times, oldest first.
     Limited { times: Vec<i64> },
 }
@@ -193,9 +195,9 @@ pub enum Created {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum CreatedOne {
     /// A new submission, queued.
-    New(i64),
+    New(SubmissionId),
     /// The same file was already submitted for the method and dataset: that submission.
-    Duplicate(i64),
+    Duplicate(SubmissionId),
 }
 
 impl From<CreatedOne> for Created {
@@ -347,7 +349,7 @@ impl Store {
     ) -> StoreResult<CreatedAll> {
         let mut tx = self.write_transaction().await?;
         if self.backend == Backend::Postgres {
-            let mut owners: Vec<i64> = news.iter().map(|n| n.owner_id).collect();
+            let mut owners: Vec<UserId> = news.iter().map(|n| n.owner_id).collect();
             owners.sort_unstable();
             owners.dedup();
             for owner in owners {
@@ -379,7 +381,7 @@ impl Store {
         Ok(CreatedAll::All(created))
     }
 
-    pub async fn submission(&self, id: i64) -> StoreResult<Option<SubmissionRow>> {
+    pub async fn submission(&self, id: SubmissionId) -> StoreResult<Option<SubmissionRow>> {
         let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.id = $1");
         let row = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(id)
@@ -391,7 +393,7 @@ impl Store {
     /// Public submissions of a method, newest first.
     pub async fn public_submissions_of_method(
         &self,
-        method_id: i64,
+        method_id: MethodId,
     ) -> StoreResult<Vec<SubmissionRow>> {
         let sql = format!(
             "SELECT {SUBMISSION_COLUMNS} WHERE s.method_id = $1 AND s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC"
@@ -424,14 +426,14 @@ impl Store {
     }
 
     /// Where submission `id` stands in the queue: the queued ones before it, and the running
-    /// ones (other than itself).
-    pub async fn queue_place(&self, id: i64) -> StoreResult<QueuePlace> {
+    /// ones (other than itself). `None` asks for a submission about to be created, behind all.
+    pub async fn queue_place(&self, id: Option<SubmissionId>) -> StoreResult<QueuePlace> {
         let row = sqlx::query(
             "SELECT CAST(COALESCE(SUM(CASE WHEN status = 'queued' AND id < $1 THEN 1 ELSE 0 END), 0) AS BIGINT) AS queued, \
              CAST(COALESCE(SUM(CASE WHEN status = 'running' AND id <> $1 THEN 1 ELSE 0 END), 0) AS BIGINT) AS running \
              FROM submissions WHERE status IN ('queued', 'running')",
         )
-        .bind(id)
+        .bind(id.map_or(i64::MAX, SubmissionId::get))
         .fetch_one(&self.pool)
         .await?;
         Ok(QueuePlace {
@@ -442,14 +444,14 @@ impl Store {
 
     /// Estimate evaluations still to do before submission `id` can start: what is left of
     /// the running jobs and all of the queued ones before it (rows stored before the work was
-    /// counted count their estimates).
-    pub async fn work_ahead(&self, id: i64) -> StoreResult<i64> {
+    /// counted count their estimates). `None` asks for a submission about to be created.
+    pub async fn work_ahead(&self, id: Option<SubmissionId>) -> StoreResult<i64> {
         let row = sqlx::query(
             "SELECT CAST(COALESCE(SUM(CASE WHEN work > 0 THEN work - work_done \
              ELSE estimates_count END), 0) AS BIGINT) AS n FROM submissions \
              WHERE (status = 'queued' AND id < $1) OR (status = 'running' AND id <> $1)",
         )
-        .bind(id)
+        .bind(id.map_or(i64::MAX, SubmissionId::get))
         .fetch_one(&self.pool)
         .await?;
         Ok(row.try_get("n")?)
@@ -474,9 +476,9 @@ impl Store {
     /// own), but `except`, newest first, at most `limit`: what a submission can be compared with.
     pub async fn finished_on_dataset(
         &self,
-        dataset_id: i64,
-        except: i64,
-        viewer: Option<i64>,
+        dataset_id: DatasetId,
+        except: SubmissionId,
+        viewer: Option<UserId>,
         limit: i64,
     ) -> StoreResult<Vec<SubmissionRow>> {
         let sql = format!(
@@ -487,7 +489,7 @@ impl Store {
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(dataset_id)
             .bind(except)
-            .bind(viewer.unwrap_or(-1))
+            .bind(viewer.map_or(-1, UserId::get))
             .bind(limit)
             .fetch_all(&self.pool)
             .await?;
@@ -495,7 +497,7 @@ impl Store {
     }
 
     /// Every submission of `owner`, private and hidden ones included, newest first.
-    pub async fn submissions_of_owner(&self, owner: i64) -> StoreResult<Vec<SubmissionRow>> {
+    pub async fn submissions_of_owner(&self, owner: UserId) -> StoreResult<Vec<SubmissionRow>> {
         let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.owner_id = $1 ORDER BY s.id DESC");
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(owner)
@@ -505,7 +507,7 @@ impl Store {
     }
 
     /// Hides or shows a submission; false when there is no such submission.
-    pub async fn set_hidden(&self, id: i64, hidden: bool) -> StoreResult<bool> {
+    pub async fn set_hidden(&self, id: SubmissionId, hidden: bool) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let done = sqlx::query("UPDATE submissions SET hidden = $1 WHERE id = $2")
             .bind(i64::from(hidden))
@@ -518,18 +520,27 @@ impl Store {
 
     /// Makes a submission public or private, which ends any hold on its publication; false
     /// when there is no such submission.
-    pub async fn set_visibility(&self, id: i64, visibility: Visibility) -> StoreResult<bool> {
+    pub async fn set_visibility(
+        &self,
+        id: SubmissionId,
+        visibility: Visibility,
+    ) -> StoreResult<bool> {
         self.set_publication(id, visibility == Visibility::Public, false)
             .await
     }
 
     /// Keeps a submission private with its publication held back for red flags; false when
     /// there is no such submission.
-    pub async fn hold_publication(&self, id: i64) -> StoreResult<bool> {
+    pub async fn hold_publication(&self, id: SubmissionId) -> StoreResult<bool> {
         self.set_publication(id, false, true).await
     }
 
-    async fn set_publication(&self, id: i64, public: bool, held: bool) -> StoreResult<bool> {
+    async fn set_publication(
+        &self,
+        id: SubmissionId,
+        public: bool,
+        held: bool,
+    ) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let (public, held) = (i64::from(public), i64::from(held));
         let exists = sqlx::query("SELECT public FROM submissions WHERE id = $1")
@@ -554,7 +565,7 @@ impl Store {
 
     /// Queues a finished submission again (e.g. after an evaluator fix); its old scores stay
     /// until the new ones replace them. False when it is missing or not finished.
-    pub async fn rerun(&self, id: i64) -> StoreResult<bool> {
+    pub async fn rerun(&self, id: SubmissionId) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
         let done = sqlx::query(
             "UPDATE submissions SET status = 'queued', progress = 0, work_done = 0, attempts = 0, error = NULL, \
@@ -570,7 +581,7 @@ impl Store {
 
     /// Deletes a submission with its scores and errors (and its file, unless another
     /// submission has the same); `None` when there is no such submission.
-    pub async fn delete_submission(&self, id: i64) -> StoreResult<Option<Deleted>> {
+    pub async fn delete_submission(&self, id: SubmissionId) -> StoreResult<Option<Deleted>> {
         let mut tx = self.write_transaction().await?;
         let Some(row) = sqlx::query("SELECT file_sha256 FROM submissions WHERE id = $1")
             .bind(id)
@@ -631,7 +642,7 @@ async fn create_one(
     new: &NewSubmission<'_>,
     fair_use: Option<FairUse>,
 ) -> StoreResult<One> {
-    let method_id: Option<i64> =
+    let method_id: Option<MethodId> =
         sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
             .bind(new.owner_id)
             .bind(new.method.as_str())
@@ -703,7 +714,7 @@ async fn create_one(
         column: "preflight_json",
         value: e.to_string(),
     })?;
-    let id: i64 = sqlx::query(
+    let id: SubmissionId = sqlx::query(
         "INSERT INTO submissions (method_id, dataset_id, protocols, public, file_name, \
          file_sha256, file_size, estimates_count, hardware, preflight_json, status, created_at, \
          owner_id, held, work) \
@@ -739,7 +750,7 @@ async fn create_one(
 /// field was written.
 async fn update_method_meta(
     tx: &mut sqlx::Transaction<'static, sqlx::Any>,
-    id: i64,
+    id: MethodId,
     meta: &MethodMeta,
     hardware: &Hardware,
 ) -> StoreResult<bool> {

@@ -8,6 +8,7 @@ use axum::http::{HeaderMap, Method, header};
 use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
 
 use crate::app::AppState;
+use crate::domain::UserId;
 use crate::error::{AppError, AppResult};
 use crate::service::accounts::{same_secret, sha256_hex};
 use crate::service::visibility;
@@ -88,7 +89,7 @@ impl Viewer {
     }
 
     /// Whether this viewer may see something owned by `owner` (admins see everything).
-    pub fn can_see(&self, owner: Option<i64>) -> bool {
+    pub fn can_see(&self, owner: Option<UserId>) -> bool {
         visibility::sees_private(self.user.as_ref(), owner)
     }
 }

@@ -14,7 +14,10 @@ use serde::{Deserialize, Serialize};
 use crate::app::App;
 use crate::clock::now_ms;
 use crate::demo::DEMO_DATASET;
-use crate::domain::{BoardProtocol, CocoProtocol, Modality, TrainingData, optional};
+use crate::domain::{
+    BoardProtocol, CocoProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData,
+    optional,
+};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
 use crate::service::{publishing, visibility};
@@ -29,7 +32,7 @@ use crate::wording;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Cell {
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     pub score: f64,
     pub recall: Option<f64>,
     pub ar_vsd: Option<f64>,
@@ -65,7 +68,7 @@ pub struct BoardRow {
     /// Rank by the average (by the score with one dataset); `None` for a row without a score on
     /// every dataset shown. Rows whose scores read the same at the precision shown share it.
     pub rank: Option<usize>,
-    pub method_id: i64,
+    pub method_id: MethodId,
     pub method: String,
     /// The account the method belongs to.
     pub owner: String,
@@ -214,7 +217,7 @@ struct Query {
     training: Option<TrainingData>,
     modality: Option<Modality>,
     /// The methods chosen for the curves, when chosen.
-    curves: Option<Vec<i64>>,
+    curves: Option<Vec<MethodId>>,
 }
 
 impl Query {
@@ -246,13 +249,13 @@ impl Query {
 }
 
 /// The `curves` of a board query: method ids separated by commas, at most [`OVERLAID`].
-fn curves(value: &str) -> AppResult<Option<Vec<i64>>> {
+fn curves(value: &str) -> AppResult<Option<Vec<MethodId>>> {
     if value.is_empty() {
         return Ok(None);
     }
     let mut ids = Vec::new();
     for part in value.split(',') {
-        let id = part.trim().parse::<i64>().map_err(|_| {
+        let id = part.trim().parse::<MethodId>().map_err(|_| {
             AppError::BadRequest(format!(
                 "curves takes method ids separated by commas, not `{part}`"
             ))
@@ -298,13 +301,13 @@ pub fn score_name(p: BoardProtocol) -> &'static str {
 
 /// A method's entry on a dataset, as any board shows it.
 struct Placed {
-    method_id: i64,
+    method_id: MethodId,
     method: String,
     owner: String,
     training_data: Option<TrainingData>,
     modality: Option<Modality>,
     hardware: String,
-    dataset_id: i64,
+    dataset_id: DatasetId,
     dataset: String,
     cell: Cell,
     objects: BTreeMap<i64, f64>,
@@ -411,7 +414,7 @@ pub async fn leaderboard(
         Some(d) => vec![d.clone()],
         None => core.clone(),
     };
-    let mut by_method: BTreeMap<i64, BoardRow> = BTreeMap::new();
+    let mut by_method: BTreeMap<MethodId, BoardRow> = BTreeMap::new();
     let mut object_ids = std::collections::BTreeSet::new();
     let entries = entries
         .iter()
@@ -574,9 +577,9 @@ pub async fn leaderboard(
 /// The methods a dataset's board offers for its curves: each ranked row, with the link that
 /// adds it to the drawn ones or takes it away (leaving none draws the best again).
 fn curve_choices(rows: &[BoardRow], drawn: &[&BoardRow], filter: &BoardFilter) -> Vec<CurveChoice> {
-    let ids: Vec<i64> = drawn.iter().map(|r| r.method_id).collect();
-    let link = |ids: Vec<i64>| {
-        let list: Vec<String> = ids.iter().map(i64::to_string).collect();
+    let ids: Vec<MethodId> = drawn.iter().map(|r| r.method_id).collect();
+    let link = |ids: Vec<MethodId>| {
+        let list: Vec<String> = ids.iter().map(MethodId::to_string).collect();
         filter.with("curves", &list.join(","))
     };
     rows.iter()
@@ -728,7 +731,7 @@ pub struct SubmissionView {
 pub struct EntryStatus {
     pub protocol: BoardProtocol,
     /// The submission that is the method's entry on the dataset under this protocol.
-    pub submission_id: i64,
+    pub submission_id: SubmissionId,
     /// It is this submission.
     pub is_this: bool,
     /// Why it is the entry: `pinned` by the owner, or `best` public finished submission.
@@ -771,15 +774,16 @@ impl OwnerLinks {
 }
 
 /// A submission as `viewer` may see it (see [`visibility::submission`]).
-pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionView> {
+pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult<SubmissionView> {
     let submission = visibility::submission(app, id, viewer.user.as_ref()).await?;
     let manages = viewer.can_see(submission.owner_id);
     let speed = crate::service::submissions::speed(app).await?;
     let now = now_ms();
     let (queue, eta_seconds, progress_text) = match submission.status {
         Status::Queued => {
-            let place = app.store.queue_place(id).await?;
-            let eta = (app.store.work_ahead(id).await? + remaining(&submission)) as f64 / speed;
+            let place = app.store.queue_place(Some(id)).await?;
+            let eta =
+                (app.store.work_ahead(Some(id)).await? + remaining(&submission)) as f64 / speed;
             let text = format!(
                 "{}; scores expected {}",
                 wording::queue_place(place.queued_ahead, place.running),
@@ -817,7 +821,7 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
         coco.as_ref()
             .map(crate::web::render::chart::precision_recall),
     );
-    let entry = |protocol: BoardProtocol, submission_id: i64, pinned: bool| EntryStatus {
+    let entry = |protocol: BoardProtocol, submission_id: SubmissionId, pinned: bool| EntryStatus {
         protocol,
         submission_id,
         is_this: submission_id == id,
@@ -922,14 +926,14 @@ impl MySubmission {
 /// Every submission of `user`, newest first, with scores, state, downloads and actions.
 pub async fn my_submissions(app: &App, user: &User) -> AppResult<MySubmissions> {
     let rows = app.store.submissions_of_owner(user.id).await?;
-    let mut scores: BTreeMap<i64, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
+    let mut scores: BTreeMap<SubmissionId, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
     for sc in app.store.scores_of_owner(user.id).await? {
         scores
             .entry(sc.submission_id)
             .or_default()
             .insert(sc.protocol, sc.score);
     }
-    let mut aps: BTreeMap<i64, f64> = app
+    let mut aps: BTreeMap<SubmissionId, f64> = app
         .store
         .coco_scores_of_owner(user.id)
         .await?
@@ -956,7 +960,7 @@ mod tests {
 
     fn dataset(name: &str, core: Option<bool>) -> DatasetRow {
         DatasetRow {
-            id: 0,
+            id: DatasetId::new(0),
             name: name.to_string(),
             path: String::new(),
             objects_count: 0,

@@ -12,6 +12,7 @@ use super::evaluation::{JobError, JobState, Outcome};
 use super::lease::{self, Lease};
 use super::pool::Worker;
 use super::retry::{self, MAX_ATTEMPTS, RELEASE_GRACE};
+use crate::domain::SubmissionId;
 use crate::store::StoreResult;
 use crate::store::submissions::{Fault, SubmissionRow};
 
@@ -21,7 +22,7 @@ const PROGRESS_EVERY: Duration = Duration::from_millis(500);
 impl Worker {
     pub(super) async fn run_job(&self, job: SubmissionRow) {
         let (app, worker) = (&self.app, self.id.as_str());
-        tracing::info!(%worker, submission = job.id, attempt = job.attempts, "evaluation started");
+        tracing::info!(%worker, submission = job.id.get(), attempt = job.attempts, "evaluation started");
         let timer = crate::ops::metrics::job_started(job.attempts);
         let job_state = JobState::new(job.protocols.len(), job.work);
         let beat = self.heartbeat(job.id, &job_state);
@@ -69,14 +70,14 @@ impl Worker {
                 .await
             }
             Err(JobError::Service(msg)) if job.attempts >= MAX_ATTEMPTS => {
-                tracing::error!(submission = id, error = %msg, "evaluation failed");
+                tracing::error!(submission = id.get(), error = %msg, "evaluation failed");
                 retry::persist(shutdown, "store the failure", None, || {
                     app.store.fail(id, worker, &msg, Fault::Service)
                 })
                 .await
             }
             Err(JobError::Service(msg)) => {
-                tracing::error!(submission = id, attempt = job.attempts, error = %msg, "evaluation failed: queued for another attempt");
+                tracing::error!(submission = id.get(), attempt = job.attempts, error = %msg, "evaluation failed: queued for another attempt");
                 let requeued = retry::persist(shutdown, "queue the job again", None, || {
                     app.store.requeue(id, worker, &msg)
                 })
@@ -85,7 +86,7 @@ impl Worker {
                 requeued
             }
             Err(JobError::Refused(msg)) => {
-                tracing::warn!(%worker, submission = id, dataset = %job.dataset, "{msg}; the job is left to other workers");
+                tracing::warn!(%worker, submission = id.get(), dataset = %job.dataset, "{msg}; the job is left to other workers");
                 self.refused.add(job.dataset_id);
                 // The copy may be fixed by the time the pause is over: read it again then.
                 app.forget_dataset(job.dataset_id).await;
@@ -94,7 +95,7 @@ impl Worker {
             Err(JobError::Stopped) => {
                 let released = self.release(id).await;
                 if matches!(released, Ok(true)) {
-                    tracing::info!(submission = id, "stopping: job released to the queue");
+                    tracing::info!(submission = id.get(), "stopping: job released to the queue");
                 }
                 return;
             }
@@ -104,14 +105,19 @@ impl Worker {
             timer.ended(evaluated);
         }
         match stored {
-            Ok(true) => tracing::info!(submission = id, "job ended"),
-            Ok(false) => tracing::warn!(submission = id, "job was taken over; result discarded"),
-            Err(e) => tracing::error!(submission = id, error = %e, "cannot store the outcome"),
+            Ok(true) => tracing::info!(submission = id.get(), "job ended"),
+            Ok(false) => tracing::warn!(
+                submission = id.get(),
+                "job was taken over; result discarded"
+            ),
+            Err(e) => {
+                tracing::error!(submission = id.get(), error = %e, "cannot store the outcome")
+            }
         }
     }
 
     /// Gives the job back without spending an attempt, trying for a short while only.
-    async fn release(&self, id: i64) -> StoreResult<bool> {
+    async fn release(&self, id: SubmissionId) -> StoreResult<bool> {
         let deadline = Instant::now() + RELEASE_GRACE;
         let released = retry::persist(&self.shutdown, "release the job", Some(deadline), || {
             self.app.store.release(id, &self.id)
@@ -123,7 +129,7 @@ impl Worker {
 
     /// Renews the job's lease and publishes its progress in one small update every
     /// [`PROGRESS_EVERY`] (or a third of the lease, if shorter).
-    fn heartbeat(&self, id: i64, state: &JobState) -> Lease {
+    fn heartbeat(&self, id: SubmissionId, state: &JobState) -> Lease {
         let (app, worker) = (self.app.clone(), self.id.clone());
         let (counter, started) = (state.counter.clone(), state.started.clone());
         let (n, work) = (state.protocols, state.work);

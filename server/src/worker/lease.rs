@@ -11,6 +11,7 @@ use std::time::Duration;
 use tokio::task::JoinHandle;
 
 use super::evaluation::JobState;
+use crate::domain::SubmissionId;
 use crate::store::StoreResult;
 
 /// A lease being renewed in the background; dropping it stops the renewals.
@@ -32,7 +33,7 @@ pub(super) fn renew_every(lease_ms: i64) -> Duration {
 /// and cancelled, and the renewals end. A renewal that fails is logged as `failed` and tried
 /// again at the next beat.
 pub(super) fn keep<F, Fut>(
-    submission: i64,
+    submission: SubmissionId,
     every: Duration,
     state: &JobState,
     failed: &'static str,
@@ -54,7 +55,7 @@ where
                     cancel.store(true, Ordering::Relaxed);
                     return;
                 }
-                Err(e) => tracing::warn!(submission, error = %e, "{failed}"),
+                Err(e) => tracing::warn!(submission = submission.get(), error = %e, "{failed}"),
             }
         }
     }))

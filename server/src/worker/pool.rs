@@ -15,6 +15,7 @@ use tracing::Instrument;
 
 use super::retry::MAX_ATTEMPTS;
 use crate::app::AppState;
+use crate::domain::DatasetId;
 use crate::shutdown::Shutdown;
 
 /// How often an idle worker looks at the queue without being woken.
@@ -50,17 +51,17 @@ fn host_name() -> String {
 /// Datasets this process's workers refused, with when: their jobs are not claimed until
 /// [`REFUSAL_PAUSE`] has passed.
 #[derive(Default)]
-pub(super) struct Refused(Mutex<HashMap<i64, Instant>>);
+pub(super) struct Refused(Mutex<HashMap<DatasetId, Instant>>);
 
 impl Refused {
-    pub(super) fn add(&self, dataset_id: i64) {
+    pub(super) fn add(&self, dataset_id: DatasetId) {
         if let Ok(mut map) = self.0.lock() {
             map.insert(dataset_id, Instant::now());
         }
     }
 
     /// The datasets to leave alone now.
-    fn current(&self) -> Vec<i64> {
+    fn current(&self) -> Vec<DatasetId> {
         let Ok(mut map) = self.0.lock() else {
             return Vec::new();
         };
@@ -95,8 +96,11 @@ impl Worker {
                 .await
             {
                 Ok(Some(job)) => {
-                    let span =
-                        tracing::info_span!("job", submission = job.id, attempt = job.attempts);
+                    let span = tracing::info_span!(
+                        "job",
+                        submission = job.id.get(),
+                        attempt = job.attempts
+                    );
                     self.run_job(job).instrument(span).await
                 }
                 Ok(None) => {
@@ -107,7 +111,7 @@ impl Worker {
                         .await
                     {
                         Ok(Some(job)) => {
-                            let span = tracing::info_span!("rescore", submission = job.id);
+                            let span = tracing::info_span!("rescore", submission = job.id.get());
                             self.run_rescore(job).instrument(span).await;
                             continue;
                         }

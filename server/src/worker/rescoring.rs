@@ -10,12 +10,13 @@ use super::evaluation::{self, JobError, JobState, Outcome};
 use super::lease::{self, Lease};
 use super::pool::Worker;
 use super::retry::{self, RELEASE_GRACE};
+use crate::domain::SubmissionId;
 use crate::store::submissions::SubmissionRow;
 
 impl Worker {
     pub(super) async fn run_rescore(&self, job: SubmissionRow) {
         let (app, worker, id) = (&self.app, self.id.as_str(), job.id);
-        tracing::info!(%worker, submission = id, from = ?job.evaluator_version, "re-scoring started");
+        tracing::info!(%worker, submission = id.get(), from = ?job.evaluator_version, "re-scoring started");
         let state = JobState::new(job.protocols.len(), job.work);
         let held = self.rescore_lease(id, &state);
         let outcome = tokio::select! {
@@ -42,7 +43,7 @@ impl Worker {
                 .await
                 {
                     Ok(Some(changes)) => {
-                        tracing::info!(submission = id, changes, "re-scored");
+                        tracing::info!(submission = id.get(), changes, "re-scored");
                         Ok(true)
                     }
                     Ok(None) => Ok(false),
@@ -50,25 +51,25 @@ impl Worker {
                 }
             }
             Err(JobError::Refused(msg)) => {
-                tracing::warn!(%worker, submission = id, "{msg}; the re-scoring is left to other workers");
+                tracing::warn!(%worker, submission = id.get(), "{msg}; the re-scoring is left to other workers");
                 self.refused.add(job.dataset_id);
                 app.forget_dataset(job.dataset_id).await;
                 let_go(false).await
             }
             Err(JobError::Stopped) => let_go(false).await,
             Err(JobError::User(msg) | JobError::Service(msg)) => {
-                tracing::error!(submission = id, error = %msg, "re-scoring failed");
+                tracing::error!(submission = id.get(), error = %msg, "re-scoring failed");
                 let_go(true).await
             }
             Err(JobError::TakenOver) => Ok(false),
         };
         if let Err(e) = stored {
-            tracing::error!(submission = id, error = %e, "cannot store the re-scoring");
+            tracing::error!(submission = id.get(), error = %e, "cannot store the re-scoring");
         }
     }
 
     /// Renews the re-scoring lease every third of the lease.
-    fn rescore_lease(&self, id: i64, state: &JobState) -> Lease {
+    fn rescore_lease(&self, id: SubmissionId, state: &JobState) -> Lease {
         let (app, worker) = (self.app.clone(), self.id.clone());
         let every = lease::renew_every(app.config.lease_ms());
         lease::keep(

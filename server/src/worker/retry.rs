@@ -70,7 +70,7 @@ pub(super) async fn evaluate_in_place(
     loop {
         match evaluation::evaluate(app, job, state).await {
             Err(JobError::Service(msg)) if tries < TRIES_IN_PLACE => {
-                tracing::warn!(submission = job.id, error = %msg, retry_in_ms = pause.as_millis() as u64, "evaluation failed: trying again");
+                tracing::warn!(submission = job.id.get(), error = %msg, retry_in_ms = pause.as_millis() as u64, "evaluation failed: trying again");
                 tokio::time::sleep(pause).await;
                 pause *= 2;
                 tries += 1;

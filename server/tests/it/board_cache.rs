@@ -161,7 +161,12 @@ fn boards_follow_every_change(kind: Db) {
         .expect("runtime")
         .block_on(async {
             let store = server::store::Store::connect(&url).await.expect("store");
-            assert!(store.set_hidden(beta, true).await.expect("hidden"));
+            assert!(
+                store
+                    .set_hidden(server::domain::SubmissionId::new(beta), true)
+                    .await
+                    .expect("hidden")
+            );
         });
     assert!(
         !html(&b).contains("cached-beta"),

@@ -9,7 +9,8 @@ use crate::common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
-    Hardware, MethodDetails, MethodName, Modality, TokenLabel, UserName, Visibility,
+    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, TokenLabel, UserId,
+    UserName, Visibility,
 };
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
@@ -51,7 +52,7 @@ async fn raw(url: &str, sql: &str) {
 
 fn dataset_row(name: &str) -> DatasetRow {
     DatasetRow {
-        id: 0,
+        id: DatasetId::new(0),
         name: name.to_string(),
         path: fixtures().join("dataset").display().to_string(),
         objects_count: 4,
@@ -68,7 +69,7 @@ fn dataset_row(name: &str) -> DatasetRow {
     }
 }
 
-async fn user(store: &Store, name: &str) -> i64 {
+async fn user(store: &Store, name: &str) -> UserId {
     store
         .create_user(
             &UserName::parse(name).unwrap(),
@@ -104,8 +105,8 @@ fn fixture(method: &str) -> Fixture {
 
 fn new_submission<'a>(
     f: &'a Fixture,
-    owner_id: i64,
-    dataset_id: i64,
+    owner_id: UserId,
+    dataset_id: DatasetId,
     sha: &'a str,
     protocols: &'a [ProtocolName],
 ) -> NewSubmission<'a> {
@@ -240,14 +241,14 @@ fn submissions_queue_and_scores(kind: Db) {
         assert_eq!(method.modality, Some(Modality::RgbD));
         assert_eq!(method.training_data, None);
         assert_eq!(
-            store.queue_place(id).await.unwrap(),
+            store.queue_place(Some(id)).await.unwrap(),
             QueuePlace {
                 queued_ahead: 0,
                 running: 0
             }
         );
         // Stored without a counted work, a job counts its estimates.
-        assert_eq!(store.work_ahead(i64::MAX).await.unwrap(), 35);
+        assert_eq!(store.work_ahead(None).await.unwrap(), 35);
         assert_eq!(store.measured_speed().await.unwrap(), None);
 
         // The queue: claim, heartbeat, finish only while the job is the worker's own.
@@ -362,7 +363,7 @@ fn submissions_queue_and_scores(kind: Db) {
         );
         assert!(
             store
-                .leaderboard(ProtocolName::Bop19, Some(ds.id + 1))
+                .leaderboard(ProtocolName::Bop19, Some(DatasetId::new(ds.id.get() + 1)))
                 .await
                 .unwrap()
                 .is_empty()
@@ -726,7 +727,10 @@ fn board_version_follows_board_changes(kind: Db) {
         assert!(step!(
             false,
             "nothing hidden",
-            !store.set_hidden(id + 99, true).await.unwrap()
+            !store
+                .set_hidden(SubmissionId::new(id.get() + 99), true)
+                .await
+                .unwrap()
         ));
         assert!(step!(
             true,

@@ -9,6 +9,7 @@ use evaluator::results;
 
 use crate::app::App;
 use crate::datasets::uploaded_file;
+use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::service::visibility;
 use crate::web::auth::Viewer;
@@ -28,7 +29,7 @@ pub struct TargetId {
 pub async fn target_png(
     app: &App,
     viewer: &Viewer,
-    id: i64,
+    id: SubmissionId,
     target: TargetId,
     protocol: Option<ProtocolName>,
 ) -> AppResult<Vec<u8>> {

@@ -13,7 +13,7 @@ use axum_extra::extract::cookie::{Cookie, CookieJar};
 use serde::Deserialize;
 
 use crate::app::AppState;
-use crate::domain::{Password, TokenLabel, UserName};
+use crate::domain::{Password, TokenLabel, UserId, UserName};
 use crate::error::{AppError, AppResult};
 use crate::service::accounts::{self, new_secret, sha256_hex};
 use crate::store::accounts::TokenRow;
@@ -108,7 +108,7 @@ async fn login(
 
 async fn start_session(
     app: &AppState,
-    user_id: i64,
+    user_id: UserId,
     headers: &HeaderMap,
     jar: CookieJar,
     next: &str,

@@ -12,6 +12,7 @@ use serde::Deserialize;
 use serde_json::json;
 
 use crate::app::AppState;
+use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::service::moderation;
 use crate::store::accounts::User;
@@ -82,7 +83,7 @@ fn submission_action_named(action: &str) -> AppResult<AdminAction> {
 async fn api_submission_action(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, action)): Path<(i64, String)>,
+    Path((id, action)): Path<(SubmissionId, String)>,
 ) -> AppResult<Json<serde_json::Value>> {
     let actor = admin(&viewer)?;
     moderation::submission_action(&app, actor, id, submission_action_named(&action)?).await?;
@@ -100,7 +101,7 @@ struct CsrfForm {
 async fn page_submission_action(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, action)): Path<(i64, String)>,
+    Path((id, action)): Path<(SubmissionId, String)>,
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     let actor = admin(&viewer)?;

@@ -16,7 +16,7 @@ use serde_json::json;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::datasets::uploaded_file;
-use crate::domain::{BoardProtocol, MethodForm, Visibility};
+use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, submit};
 use crate::service::{methods, publishing, visibility};
@@ -73,7 +73,7 @@ async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Valu
 async fn method(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<MethodId>,
 ) -> AppResult<Json<serde_json::Value>> {
     let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
     Ok(Json(
@@ -85,7 +85,7 @@ async fn method(
 async fn edit_method(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<MethodId>,
     Json(form): Json<MethodForm>,
 ) -> AppResult<Json<serde_json::Value>> {
     let user = viewer.require_user()?;
@@ -96,7 +96,7 @@ async fn edit_method(
 async fn pin(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Json<serde_json::Value>> {
     methods::pin(&app, viewer.require_user()?, id, true).await?;
     Ok(Json(
@@ -107,7 +107,7 @@ async fn pin(
 async fn unpin(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Json<serde_json::Value>> {
     methods::pin(&app, viewer.require_user()?, id, false).await?;
     Ok(Json(
@@ -161,7 +161,7 @@ fn entry(a: &Accepted) -> serde_json::Value {
 async fn submission(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Json<views::SubmissionView>> {
     Ok(Json(views::submission(&app, id, &viewer).await?))
 }
@@ -198,7 +198,7 @@ async fn form_or_json<T: serde::de::DeserializeOwned + 'static>(request: Request
 async fn visibility(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     request: Request,
 ) -> AppResult<Json<serde_json::Value>> {
     let user = viewer.require_user()?.clone();
@@ -216,7 +216,7 @@ async fn visibility(
 async fn delete_submission(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Json<serde_json::Value>> {
     let user = viewer.require_user()?.clone();
     publishing::delete(&app, &user, id).await?;
@@ -232,7 +232,7 @@ fn owner_or_missing(viewer: &Viewer) -> AppResult<&User> {
 async fn file(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Response> {
     let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
     let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
@@ -250,7 +250,7 @@ async fn file(
 async fn report(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<Response> {
     let view = views::submission(&app, id, &viewer).await?;
     // Keyed by protocol: the 6D reports, or the 2D task's one.
@@ -271,7 +271,7 @@ async fn report(
 async fn errors(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, protocol)): Path<(i64, String)>,
+    Path((id, protocol)): Path<(SubmissionId, String)>,
 ) -> AppResult<Response> {
     let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
@@ -302,7 +302,7 @@ struct PictureQuery {
 async fn target_picture(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, scene_id, im_id, picture)): Path<(i64, u32, u32, String)>,
+    Path((id, scene_id, im_id, picture)): Path<(SubmissionId, u32, u32, String)>,
     Query(q): Query<PictureQuery>,
 ) -> AppResult<Response> {
     let obj_id = picture

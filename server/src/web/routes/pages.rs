@@ -16,7 +16,10 @@ use serde::Deserialize;
 
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
-use crate::domain::{BoardProtocol, MethodForm, Modality, ModelScope, TrainingData, Visibility};
+use crate::domain::{
+    BoardProtocol, MethodForm, MethodId, Modality, ModelScope, SubmissionId, TrainingData,
+    Visibility,
+};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions;
 use crate::service::{methods, publishing, visibility};
@@ -248,7 +251,7 @@ struct MethodPage {
 async fn method(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<MethodId>,
 ) -> AppResult<MethodPage> {
     let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
     let may_edit = viewer.can_see(method.owner_id);
@@ -277,7 +280,7 @@ struct MethodEditForm {
 async fn edit_method(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<MethodId>,
     Form(f): Form<MethodEditForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?;
@@ -294,7 +297,7 @@ struct CsrfForm {
 async fn pin(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     methods::pin(&app, viewer.check_csrf(&f.csrf)?, id, true).await?;
@@ -304,7 +307,7 @@ async fn pin(
 async fn unpin(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     methods::pin(&app, viewer.check_csrf(&f.csrf)?, id, false).await?;
@@ -329,7 +332,7 @@ struct SubmissionPage {
 async fn submission(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
 ) -> AppResult<SubmissionPage> {
     let view = views::submission(&app, id, &viewer).await?;
     let compare_with = targets::comparable(&app, &view.submission, &viewer).await?;
@@ -364,7 +367,7 @@ struct VisibilityForm {
 async fn change_visibility(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Form(f): Form<VisibilityForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();
@@ -377,7 +380,7 @@ async fn change_visibility(
 async fn delete_submission(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();

@@ -22,7 +22,7 @@ use serde_json::json;
 use crate::app::{App, AppState};
 use crate::board_cache::gzip;
 use crate::clock::now_ms;
-use crate::domain::BoardProtocol;
+use crate::domain::{BoardProtocol, SnapshotId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
@@ -60,7 +60,7 @@ pub struct BoardLink {
 /// A snapshot as listed.
 #[derive(Clone, Debug, Serialize)]
 pub struct SnapshotEntry {
-    pub id: i64,
+    pub id: SnapshotId,
     pub taken_at: i64,
     pub taken_by: String,
     pub url: String,
@@ -109,7 +109,7 @@ fn query(protocol: BoardProtocol, dataset: &str) -> String {
 #[template(path = "snapshot_board.html")]
 struct SnapshotBoardPage {
     page: LeaderboardPage,
-    id: i64,
+    id: SnapshotId,
     taken_at: i64,
     permalink: String,
     /// The same board today.
@@ -142,7 +142,11 @@ pub(crate) async fn take(app: &App, actor: &User) -> AppResult<SnapshotEntry> {
     Ok(row.into())
 }
 
-async fn render_every_board(app: &App, id: i64, taken_at: i64) -> AppResult<Vec<SnapshotBoard>> {
+async fn render_every_board(
+    app: &App,
+    id: SnapshotId,
+    taken_at: i64,
+) -> AppResult<Vec<SnapshotBoard>> {
     let mut datasets = vec![String::new()];
     datasets.extend(app.store.datasets().await?.into_iter().map(|d| d.name));
     let mut boards = Vec::with_capacity(2 * BoardProtocol::ALL.len() * datasets.len());
@@ -243,7 +247,7 @@ async fn stored(
     q: &BoardQuery,
     format: BoardFormat,
 ) -> AppResult<Response> {
-    let id: i64 = id.parse().map_err(|_| AppError::NotFound)?;
+    let id: SnapshotId = id.parse().map_err(|_| AppError::NotFound)?;
     let protocol =
         BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
     let dataset = q.dataset.as_deref().unwrap_or_default();

@@ -9,6 +9,7 @@ use axum::{Json, Router};
 use evaluator::protocol::ProtocolName;
 
 use crate::app::AppState;
+use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::web::auth::Viewer;
 use crate::web::routes::pages::filters;
@@ -69,7 +70,7 @@ struct GalleryPage {
 async fn gallery_page(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Query(choice): Query<Choice>,
 ) -> AppResult<GalleryPage> {
     Ok(GalleryPage {
@@ -80,7 +81,7 @@ async fn gallery_page(
 async fn gallery_json(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path(id): Path<i64>,
+    Path(id): Path<SubmissionId>,
     Query(choice): Query<Choice>,
 ) -> AppResult<Json<Gallery>> {
     Ok(Json(targets::gallery(&app, id, &choice, &viewer).await?))
@@ -95,7 +96,7 @@ struct TargetPage {
 async fn target_page(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, scene, im, obj)): Path<(i64, u32, u32, u32)>,
+    Path((id, scene, im, obj)): Path<(SubmissionId, u32, u32, u32)>,
     Query(choice): Query<Choice>,
 ) -> AppResult<TargetPage> {
     Ok(TargetPage {
@@ -106,7 +107,7 @@ async fn target_page(
 async fn target_json(
     State(app): State<AppState>,
     viewer: Viewer,
-    Path((id, protocol, scene, im, obj)): Path<(i64, String, u32, u32, u32)>,
+    Path((id, protocol, scene, im, obj)): Path<(SubmissionId, String, u32, u32, u32)>,
     Query(mut choice): Query<Choice>,
 ) -> AppResult<Json<TargetView>> {
     let protocol: ProtocolName = protocol.parse().map_err(|_| AppError::NotFound)?;

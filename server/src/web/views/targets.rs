@@ -14,6 +14,7 @@ use evaluator::{Dataset, Report};
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
+use crate::domain::{MethodId, SubmissionId};
 use crate::error::{AppError, AppResult};
 use crate::service::visibility;
 use crate::store::pose_errors::StoredErrors;
@@ -105,8 +106,8 @@ impl Choice {
 /// A submission as these views name it.
 #[derive(Clone, Debug, Serialize)]
 pub struct Named {
-    pub id: i64,
-    pub method_id: i64,
+    pub id: SubmissionId,
+    pub method_id: MethodId,
     pub method: String,
     pub file_name: String,
     pub dataset: String,
@@ -125,7 +126,7 @@ impl Named {
 }
 
 /// A submission `viewer` may see, finished: only those have stored errors.
-async fn finished(app: &App, id: i64, viewer: &Viewer) -> AppResult<SubmissionRow> {
+async fn finished(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult<SubmissionRow> {
     let s = visibility::submission(app, id, viewer.user.as_ref()).await?;
     if s.status != Status::Done {
         return Err(AppError::BadRequest(format!(
@@ -161,7 +162,7 @@ async fn dataset_of(app: &App, s: &SubmissionRow) -> AppResult<Arc<Dataset>> {
 }
 
 /// The link to the page of one target, keeping the reader's choice.
-pub fn target_url(id: i64, scene: u32, im: u32, obj: u32, choice: &Choice) -> String {
+pub fn target_url(id: SubmissionId, scene: u32, im: u32, obj: u32, choice: &Choice) -> String {
     let q = choice.query();
     let q = q.trim_end_matches('&');
     let q = if q.is_empty() {
@@ -173,7 +174,7 @@ pub fn target_url(id: i64, scene: u32, im: u32, obj: u32, choice: &Choice) -> St
 }
 
 /// The overlay of one target: the test image with the ground-truth and estimated silhouettes.
-pub fn image_url(id: i64, scene: u32, im: u32, obj: u32) -> String {
+pub fn image_url(id: SubmissionId, scene: u32, im: u32, obj: u32) -> String {
     format!("/api/v1/submissions/{id}/targets/{scene}/{im}/{obj}.png")
 }
 
@@ -393,7 +394,7 @@ fn per_target(list: &[TargetOutcome]) -> BTreeMap<TargetKey, Tally> {
 fn pair(
     a: &[TargetOutcome],
     b: &[TargetOutcome],
-    ids: (i64, i64),
+    ids: (SubmissionId, SubmissionId),
     choice: &Choice,
 ) -> (PairedCounts, Vec<TargetPair>) {
     let (ta, tb) = (per_target(a), per_target(b));
@@ -432,7 +433,7 @@ fn pair(
 
 /// Compares submissions `a` and `b`, both visible to `viewer`, finished and on one dataset.
 pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<Comparison> {
-    let id = |name: &str, v: &Option<String>| -> AppResult<i64> {
+    let id = |name: &str, v: &Option<String>| -> AppResult<SubmissionId> {
         let s = field(v).ok_or_else(|| {
             AppError::BadRequest(format!("`{name}` (a submission id) is required"))
         })?;
@@ -596,7 +597,7 @@ fn protocols_of(s: &SubmissionRow) -> Vec<ProtocolName> {
 /// Target (scene, image, object) of submission `id`.
 pub async fn target(
     app: &App,
-    id: i64,
+    id: SubmissionId,
     (scene_id, im_id, obj_id): (u32, u32, u32),
     choice: &Choice,
     viewer: &Viewer,
@@ -753,7 +754,12 @@ pub const WORST_ORDER: &str = "missed targets first (those without any estimate,
     decreasing error of the nearest estimate), then correct ones by decreasing error";
 
 /// The worst targets of each object of submission `id`.
-pub async fn gallery(app: &App, id: i64, choice: &Choice, viewer: &Viewer) -> AppResult<Gallery> {
+pub async fn gallery(
+    app: &App,
+    id: SubmissionId,
+    choice: &Choice,
+    viewer: &Viewer,
+) -> AppResult<Gallery> {
     let s = finished(app, id, viewer).await?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
