@@ -14,8 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::app::App;
 use crate::board_cache::{BoardKey, Rendered};
-use crate::demo::DEMO_DATASET;
-use crate::domain::{BoardProtocol, Modality, TrainingData, optional};
+use crate::domain::{BoardProtocol, DEMO_DATASET, Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
 use crate::store::coco_scores::CocoBoardEntry;

@@ -6,10 +6,10 @@
 
 use std::collections::BTreeMap;
 
+use evaluator::Report;
 use evaluator::matching::EstimateErrors;
 use evaluator::outcomes::{Criterion, TargetOutcome, outcomes};
 use evaluator::protocol::{ErrorKind, Protocol, ProtocolName, columns, normalised_error};
-use evaluator::Report;
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
