@@ -32,8 +32,7 @@ pub use layouts::{
 };
 pub use submissions::{DemoResult, write_demo_results};
 
-/// The name of the demo dataset, which is also its folder name.
-pub const DEMO_DATASET: &str = "synthdemo";
+pub use crate::domain::DEMO_DATASET;
 
 /// What to generate; the default is what the service writes on first start.
 #[derive(Clone, Debug, PartialEq, Eq)]

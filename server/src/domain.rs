@@ -12,6 +12,10 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 use unicode_normalization::UnicodeNormalization;
 
+/// The name of the demo dataset, which is also its folder name. Here rather than in `demo`
+/// because the boards' rule for core datasets (a service) leaves it out once another is served.
+pub const DEMO_DATASET: &str = "synthdemo";
+
 /// A value that does not parse, with the field it came from.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("field `{field}` {problem}")]

@@ -2,8 +2,8 @@
 //! reaches it back (through `crate::` paths); in the server, web -> service -> store and
 //! worker -> service/store, nothing outside `web/` names it (apart from where the app is
 //! assembled) or mentions axum or askama, the store never names the service's error type, and
-//! the web layer holds no SQL. A text check, like a reviewer's: cheap, and it fails the build the day a
-//! circle comes back.
+//! the web layer holds no SQL and never reaches the store (its handlers call services). A text
+//! check, like a reviewer's: cheap, and it fails the build the day a circle comes back.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -197,6 +197,18 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
 /// Modules that assemble the app and so may name every layer.
 const ASSEMBLY: [&str; 2] = ["", "cli::service"];
 
+/// Whether a source reads or writes through the app's store (`app.store.x`, `&app.store`,
+/// `app\n.store\n.x`): a field named `store` followed by anything but a call, so that an
+/// atomic's `.store(v, ordering)` is not taken for it.
+fn reaches_the_store(text: &str) -> bool {
+    text.match_indices(".store").any(|(i, m)| {
+        text[i + m.len()..]
+            .chars()
+            .next()
+            .is_none_or(|c| !(c.is_alphanumeric() || c == '_' || c == '('))
+    })
+}
+
 fn rule_breaks(mods: &BTreeMap<String, (PathBuf, String)>) -> Vec<String> {
     let sql = [
         "sqlx::query",
@@ -236,6 +248,11 @@ fn rule_breaks(mods: &BTreeMap<String, (PathBuf, String)>) -> Vec<String> {
                     out.push(format!("{module} (the web layer) holds SQL: {s}"));
                 }
             }
+            if reaches_the_store(text) {
+                out.push(format!(
+                    "{module} (the web layer) reaches the store instead of a service"
+                ));
+            }
         }
     }
     out
@@ -271,6 +288,16 @@ fn the_layer_checker_finds_each_kind_of_break() {
         ),
         ("app", "use axum::Router;"),
         ("cli::service", "use crate::web::views;"),
+        ("web::routes", "let d = app.store.datasets().await?;"),
+        (
+            "web::auth",
+            "let u = app\n    .store\n    .user(id)\n    .await?;",
+        ),
+        ("web::cache", "fetch(&app.store, sha256)"),
+        (
+            "web::serve",
+            "self.last.store(ms, Ordering::Relaxed); self.stored.x();",
+        ),
     ] {
         mods.insert(name.to_string(), (PathBuf::new(), text.to_string()));
     }
@@ -280,6 +307,9 @@ fn the_layer_checker_finds_each_kind_of_break() {
             "service::accounts (service) names web::views (web)".to_string(),
             "app mentions axum or askama outside the web layer".to_string(),
             "store (the store) names the service's error type".to_string(),
+            "web::auth (the web layer) reaches the store instead of a service".to_string(),
+            "web::cache (the web layer) reaches the store instead of a service".to_string(),
+            "web::routes (the web layer) reaches the store instead of a service".to_string(),
         ]
     );
 }

@@ -10,10 +10,11 @@ use argon2::{Argon2, PasswordHash, PasswordHasher, PasswordVerifier};
 use rand::RngCore;
 use sha2::{Digest, Sha256};
 
+use crate::app::App;
 use crate::clock::now_ms;
 use crate::domain::{Password, TokenLabel, UserId, UserName, normalized};
 use crate::error::{AppError, AppResult};
-use crate::store::accounts::{Counter, User};
+use crate::store::accounts::{Counter, Session, TokenRow, User};
 use crate::store::{Store, StoreError};
 
 /// Personal tokens carry a prefix so that leaked ones are easy to recognise.
@@ -304,6 +305,80 @@ pub async fn create_token(store: &Store, user_id: UserId, label: &TokenLabel) ->
         .create_token(user_id, label, &sha256_hex(&token))
         .await?;
     Ok(token)
+}
+
+/// Sessions last two weeks.
+pub const SESSION_TTL_MS: i64 = 14 * 24 * 3600 * 1000;
+
+/// A browser signs in (see [`sign_in`]): the secret of its new session, or `None` for an
+/// unknown name or a wrong password.
+pub async fn open_session(
+    app: &App,
+    name: &str,
+    password: &str,
+    addr: IpAddr,
+) -> AppResult<Option<String>> {
+    match sign_in(&app.store, name, password, addr).await? {
+        Some(user) => Ok(Some(start_session(app, user.id).await?)),
+        None => Ok(None),
+    }
+}
+
+/// A browser registers (see [`sign_up`]): the secret of the new account's first session.
+pub async fn open_account(
+    app: &App,
+    name: &UserName,
+    password: &Password,
+    addr: IpAddr,
+) -> AppResult<String> {
+    let id = sign_up(&app.store, name, password, addr).await?;
+    start_session(app, id).await
+}
+
+/// A new session of `user_id`, with its own CSRF token; only the hash of its secret is kept.
+async fn start_session(app: &App, user_id: UserId) -> AppResult<String> {
+    let secret = new_secret();
+    app.store
+        .create_session(user_id, &sha256_hex(&secret), &new_secret(), SESSION_TTL_MS)
+        .await?;
+    Ok(secret)
+}
+
+/// The session whose cookie holds `secret`, while it lasts.
+pub async fn session(app: &App, secret: &str) -> AppResult<Option<Session>> {
+    Ok(app.store.session(&sha256_hex(secret)).await?)
+}
+
+/// Ends the session whose cookie holds `secret`.
+pub async fn close_session(app: &App, secret: &str) -> AppResult<()> {
+    Ok(app.store.delete_session(&sha256_hex(secret)).await?)
+}
+
+/// The user of a personal API token, which counts as used; refused when unknown or revoked.
+pub async fn token_user(app: &App, token: &str) -> AppResult<User> {
+    app.store
+        .user_for_token(&sha256_hex(token))
+        .await?
+        .ok_or_else(|| AppError::Unauthorized("invalid or revoked token".into()))
+}
+
+/// The personal API tokens of `user`, newest first.
+pub async fn tokens(app: &App, user: &User) -> AppResult<Vec<TokenRow>> {
+    Ok(app.store.tokens(user.id).await?)
+}
+
+/// `user` mints a token on their account page (see [`create_token`]).
+pub async fn new_token(app: &App, user: &User, label: &TokenLabel) -> AppResult<String> {
+    create_token(&app.store, user.id, label).await
+}
+
+/// `user` revokes their token `id`; another's token, or one revoked already, is missing.
+pub async fn revoke_token(app: &App, user: &User, id: i64) -> AppResult<()> {
+    if app.store.revoke_token(user.id, id).await? {
+        Ok(())
+    } else {
+        Err(AppError::NotFound)
+    }
 }
 
 #[cfg(test)]

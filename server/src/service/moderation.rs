@@ -7,7 +7,7 @@ use crate::datasets::uploaded_file;
 use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
-use crate::store::audit::AdminAction;
+use crate::store::audit::{AdminAction, AuditEntry};
 use crate::store::datasets::DatasetRow;
 
 /// Applies a submission action (hide, unhide, rerun, delete) and records it.
@@ -101,4 +101,9 @@ pub async fn set_core(app: &App, actor: &User, name: &str, core: bool) -> AppRes
     };
     app.store.audit(actor.id, action, name).await?;
     Ok(())
+}
+
+/// The latest administrator actions (at most `limit`), newest first.
+pub async fn audit_log(app: &App, limit: i64) -> AppResult<Vec<AuditEntry>> {
+    Ok(app.store.audit_log(limit).await?)
 }

@@ -10,13 +10,11 @@ use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
 use crate::app::AppState;
 use crate::domain::UserId;
 use crate::error::{AppError, AppResult};
-use crate::service::accounts::{same_secret, sha256_hex};
+use crate::service::accounts::{self, same_secret};
 use crate::service::visibility;
 use crate::store::accounts::{Session, User};
 
 pub const SESSION_COOKIE: &str = "pb_session";
-/// Sessions last two weeks.
-pub const SESSION_TTL_MS: i64 = 14 * 24 * 3600 * 1000;
 
 /// Whether a form post comes from our own pages. Browsers send `Origin` with every form post;
 /// a post whose origin names another host is cross-site (login CSRF and the like). Requests
@@ -112,11 +110,7 @@ impl FromRequestParts<AppState> for Viewer {
                 .and_then(|v| v.strip_prefix("Bearer "))
                 .map(str::trim)
                 .ok_or_else(|| AppError::Unauthorized("malformed Authorization header".into()))?;
-            let user = app
-                .store
-                .user_for_token(&sha256_hex(token))
-                .await?
-                .ok_or_else(|| AppError::Unauthorized("invalid or revoked token".into()))?;
+            let user = accounts::token_user(app, token).await?;
             return Ok(Viewer {
                 user: Some(user),
                 session: None,
@@ -124,7 +118,7 @@ impl FromRequestParts<AppState> for Viewer {
         }
         let jar = CookieJar::from_headers(&parts.headers);
         if let Some(cookie) = jar.get(SESSION_COOKIE)
-            && let Some(session) = app.store.session(&sha256_hex(cookie.value())).await?
+            && let Some(session) = accounts::session(app, cookie.value()).await?
             && session_may_act(parts, &session)
         {
             return Ok(Viewer {
@@ -138,7 +132,7 @@ impl FromRequestParts<AppState> for Viewer {
 
 /// The session cookie: HttpOnly, SameSite=Lax, and Secure when the request came over TLS
 /// (directly or through a proxy that says so). It lives as long as the browser session; the
-/// server forgets it after `SESSION_TTL_MS` in any case.
+/// server forgets it after [`accounts::SESSION_TTL_MS`] in any case.
 pub fn session_cookie(secret: String, headers: &HeaderMap) -> Cookie<'static> {
     let tls = headers
         .get("x-forwarded-proto")

@@ -52,7 +52,7 @@ impl Export {
                 "filter": board.filter,
                 "rows": board.rows,
             }))
-            .map_err(|e| AppError::Internal(format!("export JSON: {e}")))?,
+            .map_err(|e| AppError::failed("writing the export JSON", e))?,
             Export::Tex => latex(board).into_bytes(),
         })
     }

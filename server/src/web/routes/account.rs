@@ -13,11 +13,11 @@ use axum_extra::extract::cookie::{Cookie, CookieJar};
 use serde::Deserialize;
 
 use crate::app::AppState;
-use crate::domain::{Password, TokenLabel, UserId, UserName};
+use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
-use crate::service::accounts::{self, new_secret, sha256_hex};
+use crate::service::accounts;
 use crate::store::accounts::TokenRow;
-use crate::web::auth::{self, SESSION_COOKIE, SESSION_TTL_MS, Viewer};
+use crate::web::auth::{self, SESSION_COOKIE, Viewer};
 use crate::web::routes::pages::{filters, site_url};
 
 pub fn router() -> Router<AppState> {
@@ -94,7 +94,7 @@ async fn login(
         return Err(AppError::Forbidden("cross-site sign-in refused".into()));
     }
     let next = safe_next(c.next.as_deref());
-    let Some(user) = accounts::sign_in(&app.store, &c.name, &c.password, peer.ip()).await? else {
+    let Some(secret) = accounts::open_session(&app, &c.name, &c.password, peer.ip()).await? else {
         let page = LoginPage {
             name: c.name,
             next,
@@ -103,22 +103,13 @@ async fn login(
         };
         return Ok((StatusCode::UNAUTHORIZED, page).into_response());
     };
-    start_session(&app, user.id, &headers, jar, &next).await
+    Ok(signed_in(secret, &headers, jar, &next))
 }
 
-async fn start_session(
-    app: &AppState,
-    user_id: UserId,
-    headers: &HeaderMap,
-    jar: CookieJar,
-    next: &str,
-) -> AppResult<Response> {
-    let secret = new_secret();
-    app.store
-        .create_session(user_id, &sha256_hex(&secret), &new_secret(), SESSION_TTL_MS)
-        .await?;
+/// The browser is signed in with the session `secret`: its cookie, and on to `next`.
+fn signed_in(secret: String, headers: &HeaderMap, jar: CookieJar, next: &str) -> Response {
     let jar = jar.add(auth::session_cookie(secret, headers));
-    Ok((jar, Redirect::to(next)).into_response())
+    (jar, Redirect::to(next)).into_response()
 }
 
 async fn register(
@@ -148,12 +139,12 @@ async fn register(
         Ok(p) => p,
         Err(e) => return refuse(StatusCode::UNPROCESSABLE_ENTITY, e.problem_sentence()),
     };
-    let id = match accounts::sign_up(&app.store, &name, &password, peer.ip()).await {
-        Ok(id) => id,
+    let secret = match accounts::open_account(&app, &name, &password, peer.ip()).await {
+        Ok(secret) => secret,
         Err(AppError::Conflict(msg)) => return refuse(StatusCode::CONFLICT, msg),
         Err(e) => return Err(e),
     };
-    start_session(&app, id, &headers, jar, &next).await
+    Ok(signed_in(secret, &headers, jar, &next))
 }
 
 #[derive(Deserialize)]
@@ -173,9 +164,7 @@ async fn logout(
 ) -> AppResult<Response> {
     viewer.check_csrf(&f.csrf)?;
     if let Some(cookie) = jar.get(SESSION_COOKIE) {
-        app.store
-            .delete_session(&sha256_hex(cookie.value()))
-            .await?;
+        accounts::close_session(&app, cookie.value()).await?;
     }
     let jar = jar.remove(Cookie::build(SESSION_COOKIE).path("/"));
     Ok((jar, Redirect::to("/")).into_response())
@@ -205,7 +194,7 @@ async fn account_page(
     Ok(AccountPage {
         name: session.user.name.clone(),
         csrf: session.csrf_token.clone(),
-        tokens: app.store.tokens(session.user.id).await?,
+        tokens: accounts::tokens(app, &session.user).await?,
         new_token,
         site: site_url(app, headers),
     }
@@ -228,7 +217,7 @@ async fn create_token(
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();
     let label = TokenLabel::parse(&f.name)?;
-    let token = accounts::create_token(&app.store, user.id, &label).await?;
+    let token = accounts::new_token(&app, &user, &label).await?;
     account_page(&app, &viewer, &headers, Some(token)).await
 }
 
@@ -239,8 +228,6 @@ async fn revoke_token(
     Form(f): Form<CsrfForm>,
 ) -> AppResult<Response> {
     let user = viewer.check_csrf(&f.csrf)?.clone();
-    if !app.store.revoke_token(user.id, id).await? {
-        return Err(AppError::NotFound);
-    }
+    accounts::revoke_token(&app, &user, id).await?;
     Ok(Redirect::to("/account").into_response())
 }

@@ -212,7 +212,9 @@ async fn api_audit(
     viewer: Viewer,
 ) -> AppResult<Json<serde_json::Value>> {
     admin(&viewer)?;
-    Ok(Json(json!({ "audit": app.store.audit_log(500).await? })))
+    Ok(Json(
+        json!({ "audit": moderation::audit_log(&app, 500).await? }),
+    ))
 }
 
 /// Takes a snapshot of every board: 201 with its `id` and the permalinks of its boards.

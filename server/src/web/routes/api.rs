@@ -15,11 +15,10 @@ use serde_json::json;
 
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
-use crate::datasets::uploaded_file;
 use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, submit};
-use crate::service::{methods, publishing, visibility};
+use crate::service::{catalogue, downloads, methods, publishing, visibility};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
@@ -61,12 +60,14 @@ pub fn router(max_upload: u64) -> Router<AppState> {
 }
 
 async fn datasets(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
-    Ok(Json(json!({ "datasets": app.store.datasets().await? })))
+    Ok(Json(
+        json!({ "datasets": catalogue::datasets(&app).await? }),
+    ))
 }
 
 async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
     Ok(Json(
-        json!({ "methods": app.store.public_methods().await? }),
+        json!({ "methods": catalogue::public_methods(&app).await? }),
     ))
 }
 
@@ -117,7 +118,7 @@ async fn unpin(
 
 async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
     Ok(Json(
-        json!({ "submissions": app.store.recent_public_submissions(100).await? }),
+        json!({ "submissions": catalogue::recent_submissions(&app, 100).await? }),
     ))
 }
 
@@ -234,10 +235,7 @@ async fn file(
     viewer: Viewer,
     Path(id): Path<SubmissionId>,
 ) -> AppResult<Response> {
-    let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
-    let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
-        .await
-        .map_err(|e| AppError::failed("reading the uploaded file", e))?;
+    let (s, bytes) = downloads::file(&app, owner_or_missing(&viewer)?, id).await?;
     let content_type = match s.task {
         Some(_) => "application/json",
         None => "text/csv; charset=utf-8",
@@ -273,17 +271,9 @@ async fn errors(
     viewer: Viewer,
     Path((id, protocol)): Path<(SubmissionId, String)>,
 ) -> AppResult<Response> {
-    let s = publishing::owned(&app, owner_or_missing(&viewer)?, id).await?;
+    let user = owner_or_missing(&viewer)?;
     let protocol = ProtocolName::from_str(&protocol).map_err(|_| AppError::NotFound)?;
-    let stored = app
-        .store
-        .estimate_errors(s.id, protocol)
-        .await?
-        .ok_or(AppError::NotFound)?;
-    // Inflating is CPU work: off the async threads.
-    let json = tokio::task::spawn_blocking(move || stored.json())
-        .await
-        .map_err(|e| AppError::failed("inflating the errors", e))??;
+    let json = downloads::errors(&app, user, id, protocol).await?;
     Ok(attachment(
         "application/json",
         &format!("submission-{id}-{}-errors.json", protocol.as_str()),

@@ -11,6 +11,7 @@ use axum::response::{IntoResponse, Response};
 use crate::app::App;
 use crate::board_cache::{BoardKey, Format};
 use crate::error::AppResult;
+use crate::service::leaderboard;
 use crate::web::views::BoardFilter;
 
 /// The cache key of a board query.
@@ -43,7 +44,7 @@ where
         Format::Html => "text/html; charset=utf-8",
         Format::Json => "application/json",
     };
-    let rendered = app.boards.get_or_render(&app.store, key, render).await?;
+    let rendered = leaderboard::cached(app, key, render).await?;
     let mut response = match &rendered.gzip {
         Some(gzip) if accepts_gzip(headers) => {
             let mut r = gzip.clone().into_response();

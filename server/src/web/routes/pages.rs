@@ -22,7 +22,7 @@ use crate::domain::{
 };
 use crate::error::{AppError, AppResult};
 use crate::service::submissions;
-use crate::service::{methods, publishing, visibility};
+use crate::service::{catalogue, methods, publishing, visibility};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
 use crate::store::submissions::{Fault, SubmissionRow};
@@ -168,7 +168,7 @@ impl LeaderboardPage {
 pub(crate) fn html(page: &impl Template) -> AppResult<Vec<u8>> {
     page.render()
         .map(String::into_bytes)
-        .map_err(|e| AppError::Internal(format!("page: {e}")))
+        .map_err(|e| AppError::failed("rendering a page", e))
 }
 
 async fn home(
@@ -221,7 +221,7 @@ impl DatasetsPage {
 }
 
 async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<DatasetsPage> {
-    let datasets = app.store.datasets().await?;
+    let datasets = catalogue::datasets(&app).await?;
     Ok(DatasetsPage {
         core: views::core_datasets(&datasets)
             .into_iter()
@@ -426,7 +426,7 @@ async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<R
         return Ok(Redirect::to("/login?next=/submit").into_response());
     }
     Ok(SubmitPage {
-        datasets: app.store.datasets().await?,
+        datasets: catalogue::datasets(&app).await?,
         max_upload_mb: app.config.max_upload_mb,
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()
@@ -482,7 +482,7 @@ async fn submit(
         Err(e) if e.status().is_client_error() => {
             let status = e.status();
             let page = SubmitPage {
-                datasets: app.store.datasets().await?,
+                datasets: catalogue::datasets(&app).await?,
                 error: Some(e.body()),
                 ..typed
             };

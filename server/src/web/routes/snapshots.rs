@@ -1,6 +1,6 @@
-//! Dated snapshots of every leaderboard, for papers to cite: an administrator takes one, and
-//! each board (both protocols; all datasets and each dataset; HTML and JSON) is rendered by the
-//! very functions that serve the live board and kept as bytes. Its pages serve those bytes
+//! Dated snapshots of every leaderboard, for papers to cite: an administrator takes one
+//! ([`crate::service::snapshots`] decides which boards and keeps them), and each board is
+//! rendered here by the very functions that serve the live board. Its pages serve those bytes
 //! back, unchanged whatever comes later (new scores, a changed template, another evaluator).
 //!
 //! The HTML of a snapshot's board is the live page rendered with a banner (the date and the
@@ -20,13 +20,11 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use crate::app::{App, AppState};
-use crate::board_cache::gzip;
-use crate::clock::now_ms;
 use crate::domain::{BoardProtocol, SnapshotId};
 use crate::error::{AppError, AppResult};
+use crate::service::snapshots::{self, Board, Boards, Rendered};
 use crate::store::accounts::User;
-use crate::store::audit::AdminAction;
-use crate::store::snapshots::{BoardFormat, SnapshotBoard, SnapshotRow};
+use crate::store::snapshots::{BoardFormat, SnapshotRow};
 use crate::web::routes::api::leaderboard_json;
 use crate::web::routes::boards::accepts_gzip;
 use crate::web::routes::pages::filters;
@@ -126,66 +124,39 @@ impl Deref for SnapshotBoardPage {
 
 /// Takes a snapshot of every board now, by `actor` (an administrator).
 pub(crate) async fn take(app: &App, actor: &User) -> AppResult<SnapshotEntry> {
-    let taken_at = now_ms();
-    let id = app.store.begin_snapshot(actor.id, taken_at).await?;
-    match render_every_board(app, id, taken_at).await {
-        Ok(boards) => app.store.complete_snapshot(id, &boards).await?,
-        Err(e) => {
-            app.store.discard_snapshot(id).await?;
-            return Err(e);
-        }
-    }
-    app.store
-        .audit(actor.id, AdminAction::Snapshot, &id.to_string())
-        .await?;
-    let row = app.store.snapshot(id).await?.ok_or(AppError::NotFound)?;
-    Ok(row.into())
+    Ok(snapshots::take(app, actor, &LiveBoards(app)).await?.into())
 }
 
-async fn render_every_board(
-    app: &App,
-    id: SnapshotId,
-    taken_at: i64,
-) -> AppResult<Vec<SnapshotBoard>> {
-    let mut datasets = vec![String::new()];
-    datasets.extend(app.store.datasets().await?.into_iter().map(|d| d.name));
-    let mut boards = Vec::with_capacity(2 * BoardProtocol::ALL.len() * datasets.len());
-    for protocol in BoardProtocol::ALL {
-        for dataset in &datasets {
-            let filter = BoardFilter {
-                dataset: (!dataset.is_empty()).then(|| dataset.clone()),
-                ..BoardFilter::default()
-            };
-            let q = query(protocol, dataset);
-            let mut page = LeaderboardPage::of(app, protocol, &filter).await?;
-            // A snapshot is fixed: it draws the best entries' curves and offers no other.
-            page.board.curve_choices.clear();
-            let page = SnapshotBoardPage {
-                page,
-                id,
-                taken_at,
-                permalink: format!("/snapshots/{id}{q}"),
-                live: format!(
-                    "/leaderboards/{}{}",
-                    protocol.as_str(),
-                    filter.with("sort", "")
-                ),
-            };
-            boards.push(SnapshotBoard {
-                protocol,
-                dataset: dataset.clone(),
-                format: BoardFormat::Html,
-                gzip: gzip(&html(&page)?),
-            });
-            boards.push(SnapshotBoard {
-                protocol,
-                dataset: dataset.clone(),
-                format: BoardFormat::Json,
-                gzip: gzip(&leaderboard_json(app, protocol, &filter).await?),
-            });
-        }
+/// The live boards, rendered as a snapshot keeps them.
+struct LiveBoards<'a>(&'a App);
+
+impl Boards for LiveBoards<'_> {
+    async fn render(&self, board: &Board<'_>) -> AppResult<Rendered> {
+        let (app, protocol, dataset, id) = (self.0, board.protocol, board.dataset, board.snapshot);
+        let filter = BoardFilter {
+            dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
+            ..BoardFilter::default()
+        };
+        let q = query(protocol, dataset);
+        let mut page = LeaderboardPage::of(app, protocol, &filter).await?;
+        // A snapshot is fixed: it draws the best entries' curves and offers no other.
+        page.board.curve_choices.clear();
+        let page = SnapshotBoardPage {
+            page,
+            id,
+            taken_at: board.taken_at,
+            permalink: format!("/snapshots/{id}{q}"),
+            live: format!(
+                "/leaderboards/{}{}",
+                protocol.as_str(),
+                filter.with("sort", "")
+            ),
+        };
+        Ok(Rendered {
+            html: html(&page)?,
+            json: leaderboard_json(app, protocol, &filter).await?,
+        })
     }
-    Ok(boards)
 }
 
 #[derive(Template, WebTemplate)]
@@ -195,9 +166,7 @@ struct SnapshotsPage {
 }
 
 async fn entries(app: &App) -> AppResult<Vec<SnapshotEntry>> {
-    Ok(app
-        .store
-        .snapshots()
+    Ok(snapshots::list(app)
         .await?
         .into_iter()
         .map(Into::into)
@@ -251,11 +220,7 @@ async fn stored(
     let protocol =
         BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
     let dataset = q.dataset.as_deref().unwrap_or_default();
-    let gz = app
-        .store
-        .snapshot_board(id, protocol, dataset, format)
-        .await?
-        .ok_or(AppError::NotFound)?;
+    let gz = snapshots::board(app, id, protocol, dataset, format).await?;
     let mut response = if accepts_gzip(headers) {
         let mut r = gz.into_response();
         r.headers_mut()
@@ -265,7 +230,7 @@ async fn stored(
         let mut body = Vec::with_capacity(gz.len() * 4);
         flate2::read::GzDecoder::new(gz.as_slice())
             .read_to_end(&mut body)
-            .map_err(|e| AppError::Internal(format!("snapshot {id}: {e}")))?;
+            .map_err(|e| AppError::failed(format!("inflating snapshot {id}"), e))?;
         body.into_response()
     };
     let h = response.headers_mut();

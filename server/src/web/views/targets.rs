@@ -5,20 +5,18 @@
 //! the verdicts the scores count; the errors are read and matched on the evaluation threads.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
+use evaluator::Report;
 use evaluator::matching::EstimateErrors;
 use evaluator::outcomes::{Criterion, TargetOutcome, outcomes};
 use evaluator::protocol::{ErrorKind, Protocol, ProtocolName, columns, normalised_error};
-use evaluator::{Dataset, Report};
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
 use crate::domain::{MethodId, SubmissionId};
 use crate::error::{AppError, AppResult};
-use crate::service::visibility;
-use crate::store::pose_errors::StoredErrors;
-use crate::store::submissions::{Status, SubmissionRow};
+use crate::service::inspection;
+use crate::store::submissions::SubmissionRow;
 use crate::web::auth::Viewer;
 use crate::web::views::urlencode;
 
@@ -123,42 +121,6 @@ impl Named {
             dataset: s.dataset.clone(),
         }
     }
-}
-
-/// A submission `viewer` may see, finished: only those have stored errors.
-async fn finished(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult<SubmissionRow> {
-    let s = visibility::submission(app, id, viewer.user.as_ref()).await?;
-    if s.status != Status::Done {
-        return Err(AppError::BadRequest(format!(
-            "submission {id} is {}: only finished submissions have targets to show",
-            s.status
-        )));
-    }
-    Ok(s)
-}
-
-/// The stored errors of `s` under `protocol`, still compressed: inflating and parsing them is
-/// work for the evaluation threads.
-async fn stored(app: &App, s: &SubmissionRow, protocol: ProtocolName) -> AppResult<StoredErrors> {
-    app.store
-        .estimate_errors(s.id, protocol)
-        .await?
-        .ok_or_else(|| {
-            AppError::BadRequest(format!(
-                "submission {} has no per-estimate errors under {}",
-                s.id,
-                protocol.as_str()
-            ))
-        })
-}
-
-async fn dataset_of(app: &App, s: &SubmissionRow) -> AppResult<Arc<Dataset>> {
-    let row = app
-        .store
-        .dataset(s.dataset_id)
-        .await?
-        .ok_or_else(|| AppError::Internal(format!("dataset {} is gone", s.dataset_id)))?;
-    app.dataset(&row).await
 }
 
 /// The link to the page of one target, keeping the reader's choice.
@@ -442,8 +404,8 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
     };
     let (ia, ib) = (id("a", &q.a)?, id("b", &q.b)?);
     let choice = q.choice();
-    let sa = finished(app, ia, viewer).await?;
-    let sb = finished(app, ib, viewer).await?;
+    let sa = inspection::finished(app, ia, viewer.user.as_ref()).await?;
+    let sb = inspection::finished(app, ib, viewer.user.as_ref()).await?;
     if sa.dataset_id != sb.dataset_id {
         return Err(AppError::BadRequest(format!(
             "submission {ia} is on {} and submission {ib} on {}: only submissions on the same \
@@ -451,20 +413,8 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
             sa.dataset, sb.dataset
         )));
     }
-    let reports_a: BTreeMap<ProtocolName, Report> = app
-        .store
-        .reports_of_submission(ia)
-        .await?
-        .into_iter()
-        .map(|r| (r.protocol, r))
-        .collect();
-    let reports_b: BTreeMap<ProtocolName, Report> = app
-        .store
-        .reports_of_submission(ib)
-        .await?
-        .into_iter()
-        .map(|r| (r.protocol, r))
-        .collect();
+    let reports_a = inspection::reports(app, ia).await?;
+    let reports_b = inspection::reports(app, ib).await?;
     let protocols: Vec<ProtocolName> = reports_a
         .keys()
         .filter(|p| reports_b.contains_key(p))
@@ -478,8 +428,11 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
         .map(|p| protocol_scores(*p, &reports_a[p], &reports_b[p]))
         .collect();
 
-    let (ea, eb) = (stored(app, &sa, name).await?, stored(app, &sb, name).await?);
-    let dataset = dataset_of(app, &sa).await?;
+    let (ea, eb) = (
+        inspection::stored_errors(app, &sa, name).await?,
+        inspection::stored_errors(app, &sb, name).await?,
+    );
+    let dataset = inspection::dataset_of(app, &sa).await?;
     let (c, p) = (criterion.clone(), protocol.clone());
     let (oa, ob) = app
         .on_pool("matching stored errors", move || {
@@ -506,13 +459,7 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
 /// The submissions a submission's page offers to compare with: finished, on its dataset,
 /// visible to the viewer.
 pub async fn comparable(app: &App, s: &SubmissionRow, viewer: &Viewer) -> AppResult<Vec<Named>> {
-    if s.status != Status::Done {
-        return Ok(Vec::new());
-    }
-    let viewer_id = viewer.user.as_ref().map(|u| u.id);
-    Ok(app
-        .store
-        .finished_on_dataset(s.dataset_id, s.id, viewer_id, 200)
+    Ok(inspection::comparable(app, s, viewer.user.as_ref())
         .await?
         .iter()
         .map(Named::of)
@@ -602,7 +549,7 @@ pub async fn target(
     choice: &Choice,
     viewer: &Viewer,
 ) -> AppResult<TargetView> {
-    let s = finished(app, id, viewer).await?;
+    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
@@ -614,7 +561,7 @@ pub async fn target(
             criteria.push(c);
         }
     }
-    let dataset = dataset_of(app, &s).await?;
+    let dataset = inspection::dataset_of(app, &s).await?;
     if !dataset
         .targets
         .iter()
@@ -622,7 +569,7 @@ pub async fn target(
     {
         return Err(AppError::NotFound);
     }
-    let job = stored(app, &s, name).await?;
+    let job = inspection::stored_errors(app, &s, name).await?;
     let p = protocol.clone();
     let (estimates, verdicts) = app
         .on_pool("matching stored errors", move || {
@@ -760,13 +707,13 @@ pub async fn gallery(
     choice: &Choice,
     viewer: &Viewer,
 ) -> AppResult<Gallery> {
-    let s = finished(app, id, viewer).await?;
+    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
     let criterion = choice.criterion(&protocol)?;
-    let dataset = dataset_of(app, &s).await?;
-    let job = stored(app, &s, name).await?;
+    let dataset = inspection::dataset_of(app, &s).await?;
+    let job = inspection::stored_errors(app, &s, name).await?;
     let (p, c) = (protocol.clone(), criterion.clone());
     let list = app
         .on_pool("matching stored errors", move || {

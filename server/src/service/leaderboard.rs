@@ -1,0 +1,359 @@
+//! A leaderboard's use case: check the query, load the entries of the datasets shown, rank them
+//! with [`crate::service::ranking`] (the rules, free of I/O), and load what the ranking decided
+//! to show (the bootstrap replicates of the averages, the curves of the drawn entries). The web
+//! layer turns the result into the page, its JSON twin, the exports and the snapshots, and
+//! keeps what it rendered through [`cached`] while the boards stand.
+
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::sync::Arc;
+
+use evaluator::Report;
+use evaluator::coco::CocoReport;
+use serde::{Deserialize, Serialize};
+
+use crate::app::App;
+use crate::board_cache::{BoardKey, Rendered};
+use crate::domain::{BoardProtocol, DEMO_DATASET, MethodId, Modality, TrainingData, optional};
+use crate::error::{AppError, AppResult};
+use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
+use crate::store::coco_scores::CocoBoardEntry;
+use crate::store::datasets::DatasetRow;
+use crate::store::scores::BoardEntry;
+
+/// How many of a dataset's best entries its board's charts overlay.
+pub const OVERLAID: usize = 5;
+
+/// The query of a leaderboard page or its JSON twin, as given (the page's links keep it).
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct BoardFilter {
+    /// One dataset (its per-object table) instead of all.
+    pub dataset: Option<String>,
+    /// `average` (default), `time`, `method`, or a dataset name.
+    pub sort: Option<String>,
+    /// Only methods trained on this data (`synthetic`, `real`, `both`).
+    pub training: Option<String>,
+    /// Only methods using this input (`rgb`, `depth`, `rgb-d`).
+    pub modality: Option<String>,
+    /// With one dataset: the methods whose curves the charts overlay, as method ids separated
+    /// by commas (at most [`OVERLAID`]); without it, the best ranked entries.
+    pub curves: Option<String>,
+}
+
+/// A leaderboard query with every value checked: unknown sorts and filter values are errors.
+struct Query {
+    sort: Sort,
+    training: Option<TrainingData>,
+    modality: Option<Modality>,
+    /// The methods chosen for the curves, when chosen.
+    curves: Option<Vec<MethodId>>,
+}
+
+impl Query {
+    fn parse(filter: &BoardFilter, datasets: &[DatasetRow]) -> AppResult<Query> {
+        let field = |v: &Option<String>| v.clone().unwrap_or_default();
+        let sort = match field(&filter.sort).as_str() {
+            "" | "average" => Sort::Average,
+            "time" => Sort::Time,
+            "method" => Sort::Method,
+            name if datasets.iter().any(|d| d.name == name) => Sort::Dataset(name.to_string()),
+            other => {
+                return Err(AppError::BadRequest(format!(
+                    "cannot sort by `{other}`: use average, time, method or a dataset name"
+                )));
+            }
+        };
+        Ok(Query {
+            sort,
+            training: optional(&field(&filter.training))?,
+            modality: optional(&field(&filter.modality))?,
+            curves: curves(&field(&filter.curves))?,
+        })
+    }
+
+    fn matches(&self, e: &Entry) -> bool {
+        self.training.is_none_or(|t| e.training_data == Some(t))
+            && self.modality.is_none_or(|m| e.modality == Some(m))
+    }
+}
+
+/// The `curves` of a board query: method ids separated by commas, at most [`OVERLAID`].
+fn curves(value: &str) -> AppResult<Option<Vec<MethodId>>> {
+    if value.is_empty() {
+        return Ok(None);
+    }
+    let mut ids = Vec::new();
+    for part in value.split(',') {
+        let id = part.trim().parse::<MethodId>().map_err(|_| {
+            AppError::BadRequest(format!(
+                "curves takes method ids separated by commas, not `{part}`"
+            ))
+        })?;
+        if !ids.contains(&id) {
+            ids.push(id);
+        }
+        if ids.len() > OVERLAID {
+            return Err(AppError::BadRequest(format!(
+                "curves takes at most {OVERLAID} methods"
+            )));
+        }
+    }
+    Ok(Some(ids))
+}
+
+/// The core datasets: those flagged core, and of those never flagged, every one but the demo
+/// dataset once another is served (the demo is there to try the service, not to rank methods).
+pub fn core_datasets(datasets: &[DatasetRow]) -> Vec<DatasetRow> {
+    let others = datasets.iter().any(|d| d.name != DEMO_DATASET);
+    datasets
+        .iter()
+        .filter(|d| d.core.unwrap_or(!(others && d.name == DEMO_DATASET)))
+        .cloned()
+        .collect()
+}
+
+/// The curves of a dataset's board, per drawn method in rank order, from their stored reports.
+pub enum Curves {
+    /// A 6D board: each method's report (its recall curves).
+    Pose(Vec<(String, Report)>),
+    /// A 2D board: each method's COCO report (its precision-recall curve).
+    Coco(Vec<(String, CocoReport)>),
+}
+
+/// A ranked board, as every rendering of it needs it.
+pub struct Ranked {
+    /// Every dataset served.
+    pub datasets: Vec<DatasetRow>,
+    /// The core datasets.
+    pub core: Vec<DatasetRow>,
+    /// The datasets shown as columns: the core ones, or the one selected.
+    pub columns: Vec<DatasetRow>,
+    /// The dataset asked for, if one was.
+    pub selected: Option<DatasetRow>,
+    /// With one dataset selected, the objects of its per-object table.
+    pub object_ids: Vec<i64>,
+    /// The order asked for.
+    pub sort: Sort,
+    /// The rows, ranked and in the order asked for.
+    pub rows: Vec<BoardRow>,
+    /// With one dataset selected: every ranked method (id, name) in rank order.
+    pub ranked: Vec<(MethodId, String)>,
+    /// The methods whose curves are drawn, in rank order.
+    pub drawn: Vec<MethodId>,
+    /// With one dataset selected, the curves drawn.
+    pub curves: Option<Curves>,
+    /// 2D boards: the keys of the AP/AR numbers, in COCOeval's order.
+    pub stat_names: Vec<&'static str>,
+}
+
+/// The leaderboard of `protocol` under `filter`.
+pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> AppResult<Ranked> {
+    let datasets = app.store.datasets().await?;
+    let selected = match filter.dataset.as_deref() {
+        Some(name) if !name.is_empty() => Some(
+            datasets
+                .iter()
+                .find(|d| d.name == name)
+                .cloned()
+                .ok_or(AppError::NotFound)?,
+        ),
+        _ => None,
+    };
+    let query = Query::parse(filter, &datasets)?;
+    let selected_id = selected.as_ref().map(|d| d.id);
+    let (entries, coco): (Vec<Entry>, Vec<CocoBoardEntry>) = match protocol {
+        BoardProtocol::Pose(p) => (
+            app.store
+                .leaderboard(p, selected_id)
+                .await?
+                .into_iter()
+                .map(pose_entry)
+                .collect(),
+            Vec::new(),
+        ),
+        BoardProtocol::Coco(t) => {
+            let coco = app.store.coco_leaderboard(t, selected_id).await?;
+            (coco.iter().map(coco_entry).collect(), coco)
+        }
+    };
+    let core = core_datasets(&datasets);
+    let columns: Vec<DatasetRow> = match &selected {
+        Some(d) => vec![d.clone()],
+        None => core.clone(),
+    };
+    let entries: Vec<Entry> = entries.into_iter().filter(|e| query.matches(e)).collect();
+    let (mut rows, object_ids) = ranking::rows(&entries, &columns, selected.is_some());
+    let needed = ranking::replicates_needed(&rows, &columns);
+    let replicates = if needed.is_empty() {
+        BTreeMap::new()
+    } else {
+        app.store.replicates(&needed).await?
+    };
+    ranking::intervals(&mut rows, &columns, &replicates);
+    ranking::rank(&mut rows);
+    let drawn: Vec<&BoardRow> = match &selected {
+        None => Vec::new(),
+        Some(_) => ranking::drawn(&rows, query.curves.as_deref(), OVERLAID),
+    };
+    let curves = match (&selected, protocol) {
+        (Some(d), BoardProtocol::Pose(p)) => {
+            let mut methods = Vec::new();
+            for row in &drawn {
+                let Some(cell) = row.scores.get(&d.name) else {
+                    continue;
+                };
+                let reports = app.store.reports_of_submission(cell.submission_id).await?;
+                if let Some(report) = reports.into_iter().find(|r| r.protocol == p) {
+                    methods.push((row.method.clone(), report));
+                }
+            }
+            Some(Curves::Pose(methods))
+        }
+        (Some(d), BoardProtocol::Coco(_)) => Some(Curves::Coco(
+            drawn
+                .iter()
+                .filter_map(|r| {
+                    let id = r.scores.get(&d.name)?.submission_id;
+                    let e = coco.iter().find(|e| e.submission_id == id)?;
+                    Some((r.method.clone(), e.report.clone()))
+                })
+                .collect(),
+        )),
+        (None, _) => None,
+    };
+    let drawn: Vec<MethodId> = drawn.iter().map(|r| r.method_id).collect();
+    let ranked = match &selected {
+        Some(_) => rows
+            .iter()
+            .filter(|r| r.rank.is_some())
+            .map(|r| (r.method_id, r.method.clone()))
+            .collect(),
+        None => Vec::new(),
+    };
+    ranking::sort(&mut rows, &query.sort);
+    Ok(Ranked {
+        stat_names: match &coco[..] {
+            [] => Vec::new(),
+            [first, ..] => first.report.stats().iter().map(|(k, _)| *k).collect(),
+        },
+        datasets,
+        core,
+        columns,
+        selected,
+        object_ids,
+        sort: query.sort,
+        rows,
+        ranked,
+        drawn,
+        curves,
+    })
+}
+
+/// The rendered board of `key`: kept while the boards stand (see [`crate::board_cache`]),
+/// otherwise rendered by `render`.
+pub async fn cached<F, Fut>(app: &App, key: BoardKey, render: F) -> AppResult<Arc<Rendered>>
+where
+    F: FnOnce() -> Fut,
+    Fut: Future<Output = AppResult<Vec<u8>>>,
+{
+    app.boards.get_or_render(&app.store, key, render).await
+}
+
+fn pose_entry(e: BoardEntry) -> Entry {
+    Entry {
+        cell: Cell {
+            submission_id: e.submission_id,
+            score: e.score.score,
+            recall: e.score.recall,
+            ar_vsd: e.score.ar_vsd,
+            ar_mssd: e.score.ar_mssd,
+            ar_mspd: e.score.ar_mspd,
+            time: e.score.time_avg,
+            pinned: e.pinned,
+            record: Some(e.score.record.clone()),
+            ci95: e.score.ci95,
+            score_id: Some(e.score.id),
+            stats: BTreeMap::new(),
+        },
+        method_id: e.method_id,
+        method: e.method,
+        owner: e.owner,
+        training_data: e.training_data,
+        modality: e.modality,
+        hardware: e.hardware,
+        dataset_id: e.dataset_id,
+        dataset: e.dataset,
+        objects: e.object_scores,
+    }
+}
+
+fn coco_entry(e: &CocoBoardEntry) -> Entry {
+    Entry {
+        cell: Cell {
+            submission_id: e.submission_id,
+            score: e.report.ap,
+            recall: None,
+            ar_vsd: None,
+            ar_mssd: None,
+            ar_mspd: None,
+            time: e.time_avg,
+            pinned: e.pinned,
+            record: None,
+            ci95: None,
+            score_id: None,
+            stats: e.report.stats().into_iter().collect(),
+        },
+        method_id: e.method_id,
+        method: e.method.clone(),
+        owner: e.owner.clone(),
+        training_data: e.training_data,
+        modality: e.modality,
+        hardware: e.hardware.clone(),
+        dataset_id: e.dataset_id,
+        dataset: e.dataset.clone(),
+        objects: BTreeMap::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dataset(name: &str, core: Option<bool>) -> DatasetRow {
+        DatasetRow {
+            id: crate::domain::DatasetId::new(0),
+            name: name.to_string(),
+            path: String::new(),
+            objects_count: 0,
+            scenes_count: 0,
+            images_count: 0,
+            targets_count: 0,
+            instances_count: 0,
+            image_width: 0,
+            image_height: 0,
+            added_at: 0,
+            retired: false,
+            content_hash: None,
+            core,
+        }
+    }
+
+    fn names(datasets: &[DatasetRow]) -> Vec<String> {
+        core_datasets(datasets)
+            .into_iter()
+            .map(|d| d.name)
+            .collect()
+    }
+
+    #[test]
+    fn the_demo_is_core_only_alone_unless_set() {
+        assert_eq!(names(&[dataset(DEMO_DATASET, None)]), [DEMO_DATASET]);
+        let both = [dataset("lmo", None), dataset(DEMO_DATASET, None)];
+        assert_eq!(names(&both), ["lmo"]);
+        let set = [
+            dataset("lmo", Some(false)),
+            dataset(DEMO_DATASET, Some(true)),
+        ];
+        assert_eq!(names(&set), [DEMO_DATASET]);
+    }
+}

@@ -1,0 +1,129 @@
+//! What is known about submissions once uploaded: where one stands (its place in the queue and
+//! when its scores are expected, from the speed measured on this server), its scores and their
+//! records, and whether it is its method's entry on the boards; and an owner's list of theirs.
+//! One place gathers it so that a submission's page, its JSON twin and its report download
+//! read the same facts, checked by [`visibility`] first.
+
+use std::collections::BTreeMap;
+
+use evaluator::Report;
+use evaluator::coco::CocoReport;
+use evaluator::protocol::ProtocolName;
+
+use crate::app::App;
+use crate::domain::{BoardProtocol, SubmissionId};
+use crate::error::AppResult;
+use crate::service::{submissions, visibility};
+use crate::store::accounts::User;
+use crate::store::scores::ScoreRecord;
+use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
+
+/// A submission with what its page shows of it.
+pub struct Details {
+    pub submission: SubmissionRow,
+    /// Queued only: its place in the queue.
+    pub queue: Option<QueuePlace>,
+    /// Queued or running: seconds until the scores are expected.
+    pub eta_seconds: Option<f64>,
+    /// The 6D reports, one per protocol scored.
+    pub reports: Vec<Report>,
+    /// Per protocol scored, how the score can be reproduced.
+    pub records: Vec<ScoreRecord>,
+    /// A 2D task's report, once scored.
+    pub coco: Option<CocoReport>,
+    /// Per board with an entry of its method on its dataset: the entry's submission, and
+    /// whether the owner pinned it.
+    pub entries: Vec<(BoardProtocol, SubmissionId, bool)>,
+    /// Its owner pinned it as the method's entry on this dataset.
+    pub pinned: bool,
+}
+
+/// Submission `id` as `reader` may see it (see [`visibility::submission`]).
+pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppResult<Details> {
+    let submission = visibility::submission(app, id, reader).await?;
+    let speed = submissions::speed(app).await?;
+    let (queue, eta_seconds) = match submission.status {
+        Status::Queued => {
+            let place = app.store.queue_place(Some(id)).await?;
+            let eta =
+                (app.store.work_ahead(Some(id)).await? + remaining(&submission)) as f64 / speed;
+            (Some(place), Some(eta))
+        }
+        Status::Running => (None, Some(remaining(&submission) as f64 / speed)),
+        Status::Done | Status::Failed => (None, None),
+    };
+    let reports = app.store.reports_of_submission(id).await?;
+    let records = app.store.score_records(id).await?;
+    let coco = match submission.task {
+        Some(_) => app.store.coco_report(id).await?,
+        None => None,
+    };
+    let mut entries: Vec<(BoardProtocol, SubmissionId, bool)> = app
+        .store
+        .entries(submission.method_id, submission.dataset_id)
+        .await?
+        .into_iter()
+        .map(|e| (e.protocol.into(), e.submission_id, e.pinned))
+        .collect();
+    if let Some(task) = submission.task {
+        let found = app
+            .store
+            .coco_entry(task, submission.method_id, submission.dataset_id)
+            .await?;
+        entries.extend(found.map(|(sid, pinned)| (BoardProtocol::Coco(task), sid, pinned)));
+    }
+    Ok(Details {
+        pinned: app.store.is_pinned(id).await?,
+        submission,
+        queue,
+        eta_seconds,
+        reports,
+        records,
+        coco,
+        entries,
+    })
+}
+
+/// Estimate evaluations the job still has to do.
+fn remaining(s: &SubmissionRow) -> i64 {
+    if s.work > 0 {
+        (s.work - s.work_done).max(0)
+    } else {
+        s.estimates_count * s.protocols.len().max(1) as i64
+    }
+}
+
+/// One of an owner's submissions, with its headline scores.
+pub struct Owned {
+    pub submission: SubmissionRow,
+    /// Per protocol, the headline score (AR for bop19, recall for eccv18).
+    pub scores: BTreeMap<ProtocolName, f64>,
+    /// A 2D task's AP, once scored.
+    pub ap: Option<f64>,
+}
+
+/// Every submission of `user`, private ones included, newest first.
+pub async fn of_owner(app: &App, user: &User) -> AppResult<Vec<Owned>> {
+    let rows = app.store.submissions_of_owner(user.id).await?;
+    let mut scores: BTreeMap<SubmissionId, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
+    for sc in app.store.scores_of_owner(user.id).await? {
+        scores
+            .entry(sc.submission_id)
+            .or_default()
+            .insert(sc.protocol, sc.score);
+    }
+    let mut aps: BTreeMap<SubmissionId, f64> = app
+        .store
+        .coco_scores_of_owner(user.id)
+        .await?
+        .into_iter()
+        .collect();
+    Ok(rows
+        .into_iter()
+        .map(|s| Owned {
+            scores: scores.remove(&s.id).unwrap_or_default(),
+            ap: aps.remove(&s.id),
+            submission: s,
+        })
+        .collect())
+}
