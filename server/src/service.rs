@@ -4,6 +4,7 @@
 //! layer knows nothing of HTTP, so a rule holds whichever way it is reached.
 
 pub mod accounts;
+pub mod datasets;
 pub mod methods;
 pub mod moderation;
 pub mod publishing;

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 use crate::app::App;
 use crate::clock::now_ms;
 use crate::demo::DEMO_DATASET;
-use crate::domain::{BoardProtocol, CocoProtocol, Modality, TrainingData, optional};
+use crate::domain::{BoardProtocol, CocoProtocol, FieldError, Modality, TrainingData, optional};
 use crate::error::{AppError, AppResult};
 use crate::preflight::Preflight;
 use crate::service::{publishing, visibility};
@@ -159,6 +159,23 @@ impl BoardFilter {
         self.curves.as_deref().is_some_and(|c| !c.is_empty())
     }
 
+    /// Whether the filter leaves out methods by their training data or input.
+    pub fn narrows(&self) -> bool {
+        [&self.training, &self.modality]
+            .iter()
+            .any(|v| v.as_deref().is_some_and(|v| !v.trim().is_empty()))
+    }
+
+    /// The query string of this board without the filters on methods.
+    pub fn unfiltered(&self) -> String {
+        BoardFilter {
+            training: None,
+            modality: None,
+            ..self.clone()
+        }
+        .query()
+    }
+
     /// The query string of this filter as it stands (for the links to the board's exports).
     pub fn query(&self) -> String {
         self.with("", "")
@@ -231,10 +248,15 @@ impl Query {
                 )));
             }
         };
+        // The query names its parameters `training` and `modality`, whatever the fields of a
+        // method are called.
+        fn parameter(name: &'static str) -> impl Fn(FieldError) -> AppError {
+            move |e| AppError::BadRequest(format!("parameter `{name}` {}", e.problem))
+        }
         Ok(Query {
             sort,
-            training: optional(&field(&filter.training))?,
-            modality: optional(&field(&filter.modality))?,
+            training: optional(&field(&filter.training)).map_err(parameter("training"))?,
+            modality: optional(&field(&filter.modality)).map_err(parameter("modality"))?,
             curves: curves(&field(&filter.curves))?,
         })
     }
@@ -385,7 +407,13 @@ pub async fn leaderboard(
                 .iter()
                 .find(|d| d.name == name)
                 .cloned()
-                .ok_or(AppError::NotFound)?,
+                .ok_or_else(|| {
+                    AppError::Unknown(crate::service::datasets::unknown(
+                        name,
+                        "the parameter `dataset`",
+                        &datasets,
+                    ))
+                })?,
         ),
         _ => None,
     };
@@ -546,7 +574,7 @@ pub async fn leaderboard(
             _ => "s per image",
         },
         parameters: match protocol {
-            BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p))),
+            BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p)).as_defined()),
             BoardProtocol::Coco(_) => None,
         },
         stat_names: match &coco_entries[..] {
@@ -789,15 +817,11 @@ pub async fn submission(app: &App, id: i64, viewer: &Viewer) -> AppResult<Submis
         }
         Status::Running => {
             let eta = remaining(&submission) as f64 / speed;
-            let text = if submission.work > 0 {
-                format!(
-                    "{} of {} evaluated; scores expected {}",
-                    submission.work_done.min(submission.work),
-                    wording::count(submission.work, "estimate", "estimates"),
-                    wording::wait_until(eta, now)
-                )
-            } else {
-                format!("scores expected {}", wording::wait_until(eta, now))
+            let text = match crate::service::submissions::progress_words(&submission) {
+                Some(words) => {
+                    format!("{words}; scores expected {}", wording::wait_until(eta, now))
+                }
+                None => format!("scores expected {}", wording::wait_until(eta, now)),
             };
             (None, Some(eta), Some(text))
         }
@@ -879,7 +903,9 @@ fn preflight_text(s: &SubmissionRow) -> String {
             )
         })
         .collect();
-    let work = if evaluated.is_empty() {
+    let work = if s.task.is_some() {
+        wording::count(p.estimates, "detection", "detections")
+    } else if evaluated.is_empty() {
         wording::count(p.estimates, "estimate", "estimates")
     } else {
         evaluated.join(", ")
