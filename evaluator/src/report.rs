@@ -523,7 +523,6 @@ mod tests {
         assert_eq!(bop19.errors[1].thresholds, fractions);
         let px: Vec<f64> = (1..=10).map(|i| f64::from(i) * 5.0).collect();
         assert_eq!(bop19.errors[2].thresholds, px);
-        assert_eq!((bop19.main_tau, bop19.main_theta), (0.3, 0.3));
         assert_eq!(
             serde_json::to_string(&bop19.errors[0].thresholds).expect("JSON"),
             "[0.05,0.1,0.15,0.2,0.25,0.3,0.35,0.4,0.45,0.5]"
