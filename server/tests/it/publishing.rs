@@ -469,14 +469,14 @@ fn progress_moves_while_a_job_runs(kind: Db) {
         let (done, work) = (s["work_done"].as_i64(), s["work"].as_i64().expect("work"));
         if seen.last() != Some(&done) {
             // Evaluations, an estimate counting once under each protocol, with the estimates
-            // each protocol evaluates as the pre-flight gave them.
+            // each protocol evaluates as the pre-flight gave them (in the pre-flight's order).
             let text = s["progress_text"].as_str().expect("progress text");
             let per = &s["preflight"]["estimates_evaluated"];
             assert!(
                 text.contains(&format!(
-                    " of {work} evaluations done ({} estimates under bop19, {} under eccv18); \
+                    " of {work} evaluations done ({} estimates under eccv18, {} under bop19); \
                      scores expected in ",
-                    per["bop19"], per["eccv18"]
+                    per["eccv18"], per["bop19"]
                 )),
                 "{kind:?}: {text}"
             );
