@@ -159,6 +159,56 @@ pub fn parameters(protocol: &Protocol) -> Parameters {
     }
 }
 
+impl Parameters {
+    /// The parameters as the protocol defines them, for a record a reader reads: every number
+    /// the decimal it is written with (bop_toolkit's `np.arange(0.05, 0.51, 0.05)` makes
+    /// 0.15000000000000002 of the 0.15 it lists; see [`as_defined`]), and the thresholds and
+    /// taus in increasing order, each once (eccv18's 0.3 is first for the headline, and its
+    /// curve's 0.30000000000000004 reads 0.3 too). The evaluation keeps using the exact
+    /// values, which are bop_toolkit's.
+    pub fn as_defined(&self) -> Parameters {
+        let list = |v: &[f64]| {
+            let mut out: Vec<f64> = v.iter().copied().map(as_defined).collect();
+            out.sort_by(f64::total_cmp);
+            out.dedup();
+            out
+        };
+        Parameters {
+            n_top: self.n_top,
+            visib_gt_min: as_defined(self.visib_gt_min),
+            max_sym_disc_step: as_defined(self.max_sym_disc_step),
+            main_tau: as_defined(self.main_tau),
+            main_theta: as_defined(self.main_theta),
+            errors: self
+                .errors
+                .iter()
+                .map(|e| ErrorParameters {
+                    kind: e.kind.clone(),
+                    thresholds: list(&e.thresholds),
+                    vsd_delta: e.vsd_delta.map(as_defined),
+                    vsd_taus: e.vsd_taus.as_deref().map(list),
+                    vsd_normalized_by_diameter: e.vsd_normalized_by_diameter,
+                    visib_mode: e.visib_mode.clone(),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The value a protocol parameter is written as: the number of the fewest significant digits
+/// within a few units in the last place of `v`, the error a computed list such as
+/// `start + i * step` carries (0.30000000000000004 is 0.3); any other value as it is. Its
+/// shortest round-trip decimal is then the one the protocol is written with.
+pub fn as_defined(v: f64) -> f64 {
+    if !v.is_finite() || v == 0.0 {
+        return v;
+    }
+    (0..f64::DIGITS as usize)
+        .filter_map(|digits| format!("{v:.digits$e}").parse::<f64>().ok())
+        .find(|w| (w - v).abs() <= 4.0 * f64::EPSILON * v.abs())
+        .unwrap_or(v)
+}
+
 /// bop_toolkit's score signature.
 pub fn score_signature(threshold: f64, visib_gt_min: f64) -> String {
     format!("th={threshold:.3}_min-visib={visib_gt_min:.3}")
@@ -448,6 +498,52 @@ impl Report {
         match self.protocol {
             ProtocolName::Eccv18 => self.localization.as_ref().map_or(0.0, |s| s.recall),
             ProtocolName::Bop19 => self.bop19_average_recall.unwrap_or(0.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::{Protocol, bop19_fractions};
+
+    #[test]
+    fn parameters_read_as_the_protocols_define_them() {
+        // The values evaluated with stay numpy's: bop_toolkit compares against these bits.
+        assert_eq!(bop19_fractions()[2], 0.15000000000000002);
+        assert_eq!(
+            Protocol::bop19().errors[0].thresholds[2],
+            0.15000000000000002
+        );
+
+        let fractions = [0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5];
+        let bop19 = parameters(&Protocol::bop19()).as_defined();
+        assert_eq!(bop19.errors[0].thresholds, fractions);
+        assert_eq!(bop19.errors[0].vsd_taus.as_deref(), Some(&fractions[..]));
+        assert_eq!(bop19.errors[1].thresholds, fractions);
+        let px: Vec<f64> = (1..=10).map(|i| f64::from(i) * 5.0).collect();
+        assert_eq!(bop19.errors[2].thresholds, px);
+        assert_eq!(
+            serde_json::to_string(&bop19.errors[0].thresholds).expect("JSON"),
+            "[0.05,0.1,0.15,0.2,0.25,0.3,0.35,0.4,0.45,0.5]"
+        );
+
+        // eccv18: the headline theta and the curve's, in increasing order, 0.3 once.
+        let eccv18 = parameters(&Protocol::eccv18()).as_defined();
+        let thetas = [
+            0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75,
+            0.8, 0.85, 0.9, 0.95, 1.0,
+        ];
+        assert_eq!(eccv18.errors[0].thresholds, thetas);
+        assert_eq!(eccv18.errors[0].vsd_taus, Some(vec![20.0, 80.0]));
+        assert_eq!(
+            (eccv18.main_tau, eccv18.main_theta, eccv18.visib_gt_min),
+            (20.0, 0.3, 0.1)
+        );
+
+        // A value no list computed stays as it is.
+        for v in [1.0 / 3.0, 0.123_456_789, -1.0, 0.0, 1e-9] {
+            assert_eq!(as_defined(v), v);
         }
     }
 }

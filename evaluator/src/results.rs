@@ -257,6 +257,17 @@ enum Outcome {
     },
 }
 
+/// The separator a line is written with when it is not the comma: `;` or a tab, when it splits
+/// the line into the seven fields of the header (or the header itself) and the comma does not.
+fn other_separator(text: &str) -> Option<char> {
+    if text.split(',').count() == 7 {
+        return None;
+    }
+    [';', '\t']
+        .into_iter()
+        .find(|&sep| text.split(sep).count() == 7 || text.replace(sep, ",").contains(HEADER))
+}
+
 fn parse<R: Read>(reader: R) -> Outcome {
     let mut lines = LineReader::new(reader);
     let mut parser = Parser::new();
@@ -287,6 +298,9 @@ struct Parser {
     /// quotes the file, not a float's re-rendering of it).
     first_times: BTreeMap<(u32, u32), (f64, u64, String)>,
     times_available: bool,
+    /// The file's lines are separated by another character than the comma: said once, and
+    /// the lines after are not read.
+    separated_otherwise: bool,
 }
 
 impl Parser {
@@ -298,6 +312,7 @@ impl Parser {
             estimates: Vec::new(),
             first_times: BTreeMap::new(),
             times_available: true,
+            separated_otherwise: false,
         }
     }
 
@@ -329,6 +344,9 @@ impl Parser {
     fn line(&mut self, bytes: &[u8], len: u64) {
         self.line_no += 1;
         let n = self.line_no;
+        if self.separated_otherwise {
+            return;
+        }
         if len > MAX_LINE_BYTES as u64 {
             self.flush_blank_lines();
             self.problems.push(n, ProblemKind::TooLong { bytes: len });
@@ -356,6 +374,12 @@ impl Parser {
             if n != 1 {
                 self.problems.push(n, ProblemKind::RepeatedHeader);
             }
+            return;
+        }
+        let first_content = self.estimates.is_empty() && self.problems.is_empty();
+        if let Some(separator) = other_separator(text).filter(|_| first_content) {
+            self.problems.push(n, ProblemKind::Separator { separator });
+            self.separated_otherwise = true;
             return;
         }
         if n == 1 {
@@ -1270,6 +1294,26 @@ mod tests {
             only_problem(&s),
             "bad header on line 1: expected `scene_id,im_id,obj_id,score,R,t,time`, \
              found `scene_id, im_id, obj_id, score, R, t, time`"
+        );
+        // A spreadsheet's CSV, separated by `;` (decimal commas and all) or tabs: said once.
+        for (sep, said) in [(";", "`;`"), ("\t", "tabs")] {
+            let rows: Vec<String> = (0..3)
+                .map(|i| ok_row(1, i, 1).trim_end().replace(',', sep))
+                .collect();
+            let with_header = format!("{}\n{}\n", HEADER.replace(',', sep), rows.join("\n"));
+            assert_eq!(
+                only_problem(&with_header),
+                format!("the file is separated by {said}; BOP result files use commas")
+            );
+            assert_eq!(
+                only_problem(&format!("{}\n", rows.join("\n"))),
+                format!("the file is separated by {said}; BOP result files use commas")
+            );
+        }
+        let decimal_commas = "1;0;1;0,5;1 0 0 0 1 0 0 0 1;0 0 500;-1\n".repeat(3);
+        assert_eq!(
+            only_problem(&decimal_commas),
+            "the file is separated by `;`; BOP result files use commas"
         );
         // Line 1 whose first field is a number is data.
         assert_eq!(only_problem("1.5,0,1\n"), "line 1 has 3 fields, expected 7");

@@ -24,6 +24,9 @@ pub struct LineProblem {
 pub enum AppError {
     #[error("not found")]
     NotFound,
+    /// A name in the request that names nothing here, with what there is instead.
+    #[error("{0}")]
+    Unknown(String),
     /// No valid credentials (or a revoked token).
     #[error("{0}")]
     Unauthorized(String),

@@ -86,8 +86,15 @@ impl std::fmt::Display for RedFlag {
 }
 
 impl Preflight {
-    /// Coverage of a valid result file against the dataset's targets.
-    pub fn of(dataset: &Dataset, results: &Results, protocols: &[ProtocolName]) -> Preflight {
+    /// Coverage of a valid result file against the dataset's targets, for evaluation under
+    /// `protocols`; estimates beyond what a protocol considers per target are warned about
+    /// only for the protocols in `warned` (the ones the uploader chose).
+    pub fn of(
+        dataset: &Dataset,
+        results: &Results,
+        protocols: &[ProtocolName],
+        warned: &[ProtocolName],
+    ) -> Preflight {
         let coverage = Coverage::of(dataset, results);
         let beyond: BTreeMap<ProtocolName, usize> = protocols
             .iter()
@@ -119,7 +126,7 @@ impl Preflight {
             ));
         }
         for (p, n) in &beyond {
-            if *n > 0 {
+            if *n > 0 && warned.contains(p) {
                 warnings.push(format!(
                     "{} beyond what {p} considers per target will not count (the highest-scored are used)",
                     count(*n, "estimate", "estimates"),
@@ -196,7 +203,7 @@ impl Preflight {
         if not_for_targets > 0 {
             warnings.push(format!(
                 "{}, for images that are not test targets, will be ignored",
-                count(not_for_targets, "entry", "entries")
+                count(not_for_targets, "detection", "detections")
             ));
         }
         let mut red_flags = Vec::new();

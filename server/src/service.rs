@@ -8,6 +8,7 @@
 
 pub mod accounts;
 pub mod catalogue;
+pub mod datasets;
 pub mod downloads;
 pub mod inspection;
 pub mod leaderboard;

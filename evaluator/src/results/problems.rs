@@ -67,6 +67,11 @@ pub enum ProblemKind {
     },
     /// A line after line 1 contains the header.
     RepeatedHeader,
+    /// The fields are separated by `;` or a tab instead of commas (a spreadsheet's CSV): said
+    /// once, at the first line, rather than for every line.
+    Separator {
+        separator: char,
+    },
     /// Not 7 comma-separated fields.
     FieldCount {
         found: usize,
@@ -141,6 +146,14 @@ impl fmt::Display for Problem {
                     "bad header on line {n}: expected `{HEADER}`, found `{found}`"
                 )
             }
+            ProblemKind::Separator { separator: '\t' } => write!(
+                f,
+                "the file is separated by tabs; BOP result files use commas"
+            ),
+            ProblemKind::Separator { separator } => write!(
+                f,
+                "the file is separated by `{separator}`; BOP result files use commas"
+            ),
             ProblemKind::RepeatedHeader => {
                 write!(
                     f,

@@ -23,6 +23,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::datasets::config::{SplitChoice, folder_choice};
 use crate::preflight::Preflight;
+use crate::service::submissions::Protocols;
 use crate::wording::count;
 
 #[derive(Args, Debug)]
@@ -555,11 +556,12 @@ pub fn run_check(args: CheckArgs) -> Result<()> {
         );
     }
     // The upload pre-flight check, so the command line and the service say the same.
-    let p = Preflight::of(
-        &dataset,
-        &results,
-        &[ProtocolName::Bop19, ProtocolName::Eccv18],
-    );
+    let asked: Vec<ProtocolName> = match resolved {
+        Some(Resolved::Pose(name)) => vec![name],
+        _ => Vec::new(),
+    };
+    let protocols = Protocols::asked(&asked);
+    let p = Preflight::of(&dataset, &results, &protocols.scored, &protocols.warned);
     println!(
         "{}: {}, {} without an estimate; {} not for a target and would be ignored",
         dataset.name,
@@ -777,19 +779,52 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 
 /// A report's warnings on stderr and its scores on stdout, as `eval` and `submit` show them.
 pub(crate) fn print_scores(report: &Report) {
+    print_scores_as(report, Scale::Fraction);
+}
+
+/// [`print_scores`] with the scores on `scale`.
+pub(crate) fn print_scores_as(report: &Report, scale: Scale) {
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    print!("{}", table(report));
+    print!("{}", table_as(report, scale));
+}
+
+/// How a score is written: as bop_toolkit writes it (a fraction), or as the site shows it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    /// 0.4531: what `poseboard eval` prints, to compare with bop_toolkit's output.
+    Fraction,
+    /// 45.3: the site's scores in %, one decimal (`poseboard submit`).
+    Percent,
+}
+
+impl Scale {
+    fn write(self, v: f64) -> String {
+        match self {
+            Scale::Fraction => format!("{v:.4}"),
+            Scale::Percent => format!("{:.1}", v * 100.0),
+        }
+    }
 }
 
 /// The scores as a table for the terminal.
 pub fn table(r: &Report) -> String {
+    table_as(r, Scale::Fraction)
+}
+
+/// [`table`] with the scores on `scale`.
+pub fn table_as(r: &Report, scale: Scale) -> String {
     use std::fmt::Write;
+    let f = |v: f64| scale.write(v);
+    let unit = match scale {
+        Scale::Fraction => "",
+        Scale::Percent => "  (scores in %)",
+    };
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "dataset {}  protocol {}  estimates {} (evaluated {}, ignored {})",
+        "dataset {}  protocol {}  estimates {} (evaluated {}, ignored {}){unit}",
         r.dataset,
         r.protocol.as_str(),
         r.estimates_count,
@@ -801,21 +836,21 @@ pub fn table(r: &Report) -> String {
             if let Some(l) = &r.localization {
                 let _ = writeln!(
                     s,
-                    "VSD recall (tau {} mm, theta {}): {:.4}   [{} of {} targets]",
+                    "VSD recall (tau {} mm, theta {}): {}   [{} of {} targets]",
                     r.parameters.main_tau,
                     r.parameters.main_theta,
-                    l.recall,
+                    f(l.recall),
                     l.tp_count,
                     l.targets_count
                 );
-                let _ = writeln!(s, "mean object recall {:.4}", l.mean_obj_recall);
+                let _ = writeln!(s, "mean object recall {}", f(l.mean_obj_recall));
                 let _ = writeln!(s, "{:>8}  {:>8}", "object", "recall");
                 for (o, v) in &l.obj_recalls {
-                    let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+                    let _ = writeln!(s, "{o:>8}  {:>8}", f(*v));
                 }
                 let _ = writeln!(s, "{:>8}  {:>8}", "scene", "recall");
                 for (o, v) in &l.scene_recalls {
-                    let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+                    let _ = writeln!(s, "{o:>8}  {:>8}", f(*v));
                 }
             }
             if let Some(t) = r.average_time_per_target {
@@ -823,18 +858,18 @@ pub fn table(r: &Report) -> String {
             }
         }
         ProtocolName::Bop19 => {
-            let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+            let opt = |v: Option<f64>| v.map_or("-".to_string(), f);
             let _ = writeln!(
                 s,
                 "AR {}   AR_VSD {}   AR_MSSD {}   AR_MSPD {}",
-                f(r.bop19_average_recall),
-                f(r.bop19_average_recall_vsd),
-                f(r.bop19_average_recall_mssd),
-                f(r.bop19_average_recall_mspd)
+                opt(r.bop19_average_recall),
+                opt(r.bop19_average_recall_vsd),
+                opt(r.bop19_average_recall_mssd),
+                opt(r.bop19_average_recall_mspd)
             );
             let _ = writeln!(s, "{:>8}  {:>8}", "object", "AR");
             for (o, v) in &r.obj_average_recalls {
-                let _ = writeln!(s, "{o:>8}  {v:>8.4}");
+                let _ = writeln!(s, "{o:>8}  {:>8}", f(*v));
             }
             // bop_toolkit writes -1 when the file gives no times.
             if let Some(t) = r.bop19_average_time_per_image.filter(|t| *t >= 0.0) {
@@ -845,7 +880,7 @@ pub fn table(r: &Report) -> String {
     for (name, ar) in &r.average_recalls {
         // Errors beyond the protocol's own (e.g. ADD) get their average recall listed.
         if !matches!(name.as_str(), "vsd" | "mssd" | "mspd") {
-            let _ = writeln!(s, "average recall {name}: {ar:.4}");
+            let _ = writeln!(s, "average recall {name}: {}", f(*ar));
         }
     }
     s

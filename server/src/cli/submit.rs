@@ -1,8 +1,10 @@
 //! `poseboard submit`: a result file sent to a poseboard server from the script that wrote it.
 //! The file is checked here first with the parser `check-results` uses, so a malformed file
 //! fails on the researcher's machine, naming its lines, before a byte is uploaded; then it is
-//! uploaded through the API, the evaluation is followed, and the scores are printed the way
-//! `poseboard eval` prints them.
+//! uploaded through the API, the evaluation is followed, and the scores are printed as the
+//! site shows them (percent; `--json` keeps the fractions). A researcher's script ends here, so
+//! what became of the submission is said after the scores: who sees it, whether it is on a
+//! board, what red flag holds it back, and what publishes it.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -16,10 +18,13 @@ use evaluator::Report;
 use evaluator::protocol::ProtocolName;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use reqwest::blocking::{Client, Response, multipart};
+use serde::Serialize;
 use serde_json::Value;
 
-use crate::cli::eval::{load_results, print_scores};
+use crate::cli::eval::{Scale, load_results, print_scores_as};
 use crate::domain::Visibility;
+use crate::preflight::RedFlag;
+use crate::service::submissions::file_dataset;
 
 #[derive(Args, Debug)]
 pub struct SubmitArgs {
@@ -28,9 +33,10 @@ pub struct SubmitArgs {
     /// The method the results are of (created on the server at its first submission).
     #[arg(long)]
     pub method: String,
-    /// The dataset the results are for, as the server names it.
+    /// The dataset the results are for, as the server names it (default: the one the file's
+    /// name `METHOD_DATASET-SPLIT.csv` says, as the server reads it).
     #[arg(long)]
-    pub dataset: String,
+    pub dataset: Option<String>,
     /// Evaluate under this protocol only (default: both).
     #[arg(long)]
     pub protocol: Option<ProtocolName>,
@@ -51,7 +57,8 @@ pub struct SubmitArgs {
     /// a private or self-signed certificate.
     #[arg(long, env = "POSEBOARD_CA_CERT")]
     pub ca_cert: Option<PathBuf>,
-    /// Also print the final submission as JSON, as the last line of stdout.
+    /// Also print the final submission as JSON, as the last line of stdout (its `outcome`
+    /// says what the text says after the scores).
     #[arg(long)]
     pub json: bool,
 }
@@ -60,6 +67,8 @@ pub struct SubmitArgs {
 const POLL: Duration = Duration::from_millis(500);
 
 pub fn run(args: SubmitArgs) -> Result<()> {
+    let dataset = file_dataset(args.dataset.as_deref(), &file_name(&args.file))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let results = load_results(&args.file)?;
     eprintln!(
         "{}: {} estimates, valid",
@@ -83,7 +92,7 @@ pub fn run(args: SubmitArgs) -> Result<()> {
     let client = client.build().context("cannot start the HTTP client")?;
     reach(&client, &server, &args.token)?;
 
-    let accepted = upload(&client, &server, &args)?;
+    let accepted = upload(&client, &server, &args, &dataset)?;
     let id = accepted["id"]
         .as_i64()
         .context("the server's answer has no submission id")?;
@@ -93,20 +102,138 @@ pub fn run(args: SubmitArgs) -> Result<()> {
         eprintln!("submission {id}: queued");
     }
 
-    let done = follow(&client, &server, &args.token, id)?;
+    let mut done = follow(&client, &server, &args.token, id)?;
     let scores: BTreeMap<ProtocolName, Report> =
         serde_json::from_value(done["scores"].clone()).context("the scores the server sent")?;
     // The order the protocols are named in everywhere else: BOP'19 first.
     for protocol in [ProtocolName::Bop19, ProtocolName::Eccv18] {
         if let Some(report) = scores.get(&protocol) {
-            print_scores(report);
+            print_scores_as(report, Scale::Percent);
         }
     }
-    eprintln!("{server}/submissions/{id}");
+    let outcome = Outcome::of(&done, &server, &args, &dataset)?;
+    print!("{}", outcome.text());
     if args.json {
+        done["outcome"] = serde_json::to_value(&outcome).context("the outcome as JSON")?;
         println!("{done}");
     }
     Ok(())
+}
+
+/// What became of a finished submission, for the researcher who sent it.
+#[derive(Debug, Serialize)]
+struct Outcome {
+    /// `public`, `private` or `held` (private until its owner confirms despite red flags).
+    visibility: &'static str,
+    /// The server's words for it ("private: only you ... can see it", "held: ...").
+    publication: String,
+    /// The protocols under which this submission is the method's entry on the board.
+    on_board: Vec<String>,
+    /// Per protocol with another entry: that submission (the method's best or pinned one).
+    entry_elsewhere: BTreeMap<String, i64>,
+    /// Why publication waits for the owner's confirmation.
+    red_flags: Vec<String>,
+    /// What publishes it, when it is not public.
+    publish: Option<String>,
+    url: String,
+}
+
+impl Outcome {
+    fn of(done: &Value, server: &str, args: &SubmitArgs, dataset: &str) -> Result<Outcome> {
+        let id = done["id"].as_i64().context("the submission has no id")?;
+        let url = format!("{server}/submissions/{id}");
+        let red_flags: Vec<RedFlag> =
+            serde_json::from_value(done["preflight"]["red_flags"].clone())
+                .context("the red flags the server sent")?;
+        let held = done["held"].as_bool() == Some(true);
+        let visibility = match done["visibility"].as_str() {
+            Some("public") => "public",
+            _ if held => "held",
+            _ => "private",
+        };
+        let (mut on_board, mut entry_elsewhere) = (Vec::new(), BTreeMap::new());
+        for e in done["entries"].as_array().into_iter().flatten() {
+            let protocol = e["protocol"].as_str().unwrap_or_default().to_string();
+            match e["submission_id"].as_i64() {
+                Some(other) if other != id => {
+                    entry_elsewhere.insert(protocol, other);
+                }
+                _ => on_board.push(protocol),
+            }
+        }
+        let publish = match visibility {
+            "public" => None,
+            _ if !red_flags.is_empty() => Some(format!(
+                "confirm on {url} (\"Confirm and publish despite the red flags\"), or POST \
+                 {server}/api/v1/submissions/{id}/visibility with visibility=public&confirm=true"
+            )),
+            _ => {
+                // The same command with the visibility asked for: a file sent again for its
+                // method is how its owner publishes it.
+                let mut again = format!(
+                    "poseboard submit {} --method {}",
+                    args.file.display(),
+                    args.method
+                );
+                if args.dataset.is_some() {
+                    again.push_str(&format!(" --dataset {dataset}"));
+                }
+                if let Some(p) = args.protocol {
+                    again.push_str(&format!(" --protocol {}", p.as_str()));
+                }
+                Some(format!(
+                    "`{again} --visibility public` (the same file again), or the Publish \
+                     button on {url}"
+                ))
+            }
+        };
+        Ok(Outcome {
+            visibility,
+            publication: done["publication"].as_str().unwrap_or_default().to_string(),
+            on_board,
+            entry_elsewhere,
+            red_flags: red_flags.iter().map(RedFlag::to_string).collect(),
+            publish,
+            url,
+        })
+    }
+
+    /// The outcome in lines, as printed after the scores: who sees it and what publishes it
+    /// first, then its red flags and where it stands on the boards.
+    fn text(&self) -> String {
+        let mut s = match (self.visibility, &self.publish) {
+            ("public", _) | (_, None) => format!("{}\n", self.publication),
+            ("held", Some(how)) => format!(
+                "held: private until you confirm publishing it despite its red flags; to \
+                 publish anyway, {how}\n"
+            ),
+            (_, Some(how)) if self.red_flags.is_empty() => {
+                format!("private: only you see it; publish with {how}\n")
+            }
+            (_, Some(how)) => format!(
+                "private: only you see it; its red flags hold publication back: to publish \
+                 anyway, {how}\n"
+            ),
+        };
+        for flag in &self.red_flags {
+            s.push_str(&format!("red flag: {flag}\n"));
+        }
+        for p in &self.on_board {
+            s.push_str(&format!(
+                "on the {p} board: this is the method's entry on the dataset\n"
+            ));
+        }
+        for (p, other) in &self.entry_elsewhere {
+            s.push_str(&format!(
+                "not on the {p} board: the method's entry there is submission {other}\n"
+            ));
+        }
+        if self.visibility != "public" {
+            s.push_str("not on a board: only public submissions are\n");
+        }
+        s.push_str(&format!("{}\n", self.url));
+        s
+    }
 }
 
 /// A first small request, signed with the token, before the file is streamed: a server that
@@ -126,7 +253,7 @@ fn reach(client: &Client, server: &str, token: &str) -> Result<()> {
 }
 
 /// Sends the file with its fields; the answer's JSON when accepted.
-fn upload(client: &Client, server: &str, args: &SubmitArgs) -> Result<Value> {
+fn upload(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) -> Result<Value> {
     let size = std::fs::metadata(&args.file)
         .with_context(|| format!("cannot read {}", args.file.display()))?
         .len();
@@ -139,7 +266,7 @@ fn upload(client: &Client, server: &str, args: &SubmitArgs) -> Result<Value> {
     let name = file_name(&args.file);
     let mut form = multipart::Form::new()
         .text("method", args.method.clone())
-        .text("dataset", args.dataset.clone())
+        .text("dataset", dataset.to_string())
         .part(
             "file",
             multipart::Part::reader_with_length(reader, size).file_name(name),

@@ -4,8 +4,6 @@
 
 use std::path::Path;
 
-use evaluator::protocol::ProtocolName;
-
 use crate::app::App;
 use crate::demo::{
     DEMO_DATASET, SynthOptions, write_dataset, write_demo_coco_results, write_demo_results,
@@ -14,7 +12,7 @@ use crate::domain::{
     Description, Hardware, MethodName, Modality, Password, TrainingData, UserName, Visibility,
 };
 use crate::service::accounts::{new_secret, register};
-use crate::service::submissions::{Limit, Upload, UploadedFile, submit_under};
+use crate::service::submissions::{Limit, Protocols, Upload, UploadedFile, submit_under};
 use crate::store::methods::MethodMeta;
 
 /// The account that owns the demo submissions.
@@ -79,7 +77,7 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
         let upload = Upload {
             method: MethodName::parse(&demo.method)?,
             dataset: Some(row.name.clone()),
-            protocols: vec![ProtocolName::Bop19, ProtocolName::Eccv18],
+            protocols: Protocols::asked(&[]),
             // The demo's `.json` files are BOP'22 2D results: their task is read from them.
             task: None,
             meta: MethodMeta {

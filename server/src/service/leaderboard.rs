@@ -14,7 +14,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::app::App;
 use crate::board_cache::{BoardKey, Rendered};
-use crate::domain::{BoardProtocol, DEMO_DATASET, MethodId, Modality, TrainingData, optional};
+use crate::domain::{
+    BoardProtocol, DEMO_DATASET, FieldError, MethodId, Modality, TrainingData, optional,
+};
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
 use crate::store::coco_scores::CocoBoardEntry;
@@ -63,10 +65,15 @@ impl Query {
                 )));
             }
         };
+        // The query names its parameters `training` and `modality`, whatever the fields of a
+        // method are called.
+        fn parameter(name: &'static str) -> impl Fn(FieldError) -> AppError {
+            move |e| AppError::BadRequest(format!("parameter `{name}` {}", e.problem))
+        }
         Ok(Query {
             sort,
-            training: optional(&field(&filter.training))?,
-            modality: optional(&field(&filter.modality))?,
+            training: optional(&field(&filter.training)).map_err(parameter("training"))?,
+            modality: optional(&field(&filter.modality)).map_err(parameter("modality"))?,
             curves: curves(&field(&filter.curves))?,
         })
     }
@@ -155,7 +162,13 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
                 .iter()
                 .find(|d| d.name == name)
                 .cloned()
-                .ok_or(AppError::NotFound)?,
+                .ok_or_else(|| {
+                    AppError::Unknown(super::datasets::unknown(
+                        name,
+                        "the parameter `dataset`",
+                        &datasets,
+                    ))
+                })?,
         ),
         _ => None,
     };

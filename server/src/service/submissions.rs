@@ -33,10 +33,12 @@ use crate::datasets::uploaded_file;
 use crate::domain::{CocoProtocol, DatasetId, Hardware, MethodName, Visibility};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
+use crate::service::datasets::served;
 use crate::service::publishing;
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
 use crate::store::submissions::{CreatedAll, CreatedOne, FairUse, NewSubmission, SubmissionRow};
+use crate::wording;
 
 /// Estimate evaluations per second assumed until this service has measured its own speed.
 const ASSUMED_SPEED: f64 = 250.0;
@@ -46,14 +48,87 @@ pub async fn speed(app: &App) -> AppResult<f64> {
     Ok(app.store.measured_speed().await?.unwrap_or(ASSUMED_SPEED))
 }
 
+/// How far a running evaluation is, in the unit its pages count in: a 2D file's detections;
+/// a 6D file's estimates under its protocol, or, under several, evaluations (an estimate
+/// counts once under each protocol), with the estimates each protocol evaluates, as the
+/// pre-flight announced them. `None` before the work is known.
+pub fn progress_words(s: &SubmissionRow) -> Option<String> {
+    if s.work <= 0 {
+        return None;
+    }
+    let done = s.work_done.clamp(0, s.work);
+    let per = &s.preflight.estimates_evaluated;
+    Some(match per.iter().collect::<Vec<_>>().as_slice() {
+        _ if s.task.is_some() => format!(
+            "{done} of {} evaluated",
+            wording::count(s.work, "detection", "detections")
+        ),
+        [(protocol, _)] => format!(
+            "{done} of {} evaluated under {}",
+            wording::count(s.work, "estimate", "estimates"),
+            protocol.as_str()
+        ),
+        [] => format!(
+            "{done} of {} done",
+            wording::count(s.work, "evaluation", "evaluations")
+        ),
+        several => {
+            let each: Vec<String> = several
+                .iter()
+                .enumerate()
+                .map(|(i, (protocol, n))| {
+                    let n = match i {
+                        0 => wording::count(n, "estimate", "estimates"),
+                        _ => n.to_string(),
+                    };
+                    format!("{n} under {}", protocol.as_str())
+                })
+                .collect();
+            format!(
+                "{done} of {} done ({})",
+                wording::count(s.work, "evaluation", "evaluations"),
+                each.join(", ")
+            )
+        }
+    })
+}
+
+/// The 6D protocols of an upload: those it is scored under and those its pre-flight speaks
+/// for.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Protocols {
+    pub scored: Vec<ProtocolName>,
+    /// Whose selection of estimates the pre-flight warns about: a BOP'19 file holds several
+    /// estimates per target, which eccv18 (one per target) would flag on every upload.
+    pub warned: Vec<ProtocolName>,
+}
+
+impl Protocols {
+    /// The protocols the uploader chose; without a choice, the file is scored under both and
+    /// warned about for bop19 only, the protocol its format is written for.
+    pub fn asked(asked: &[ProtocolName]) -> Protocols {
+        match asked {
+            [] => Protocols {
+                scored: vec![ProtocolName::Bop19, ProtocolName::Eccv18],
+                warned: vec![ProtocolName::Bop19],
+            },
+            some => Protocols {
+                scored: some.to_vec(),
+                warned: some.to_vec(),
+            },
+        }
+    }
+}
+
 /// An upload, parsed.
 #[derive(Debug)]
 pub struct Upload {
     pub method: MethodName,
     /// The name of a served dataset; `None`: each file's name says it.
     pub dataset: Option<String>,
-    /// The protocols to evaluate a 6D (CSV) file under.
-    pub protocols: Vec<ProtocolName>,
+    /// The protocols to evaluate a 6D (CSV) file under, and those the uploader chose (see
+    /// [`Protocols::asked`]).
+    pub protocols: Protocols,
     /// The 2D task asked for; `None`: a `.json` file's task is inferred from its content.
     pub task: Option<CocoProtocol>,
     pub meta: MethodMeta,
@@ -160,6 +235,11 @@ pub async fn submit_under(
     let mut seen: BTreeMap<String, String> = BTreeMap::new();
     for file in files {
         let name = file.name.clone();
+        // Where the dataset's name was read, for an answer that it is not served.
+        let from = match &dataset {
+            Some(_) => "the field `dataset`".to_string(),
+            None => format!("the file name {name}"),
+        };
         let result = match file_dataset(dataset.as_deref(), &name) {
             Ok(ds) => match seen.insert(ds.clone(), name.clone()) {
                 Some(first) => Err(AppError::Invalid {
@@ -167,9 +247,9 @@ pub async fn submit_under(
                     problems: Vec::new(),
                 }),
                 None if task.is_some() || is_coco_file(&name) => {
-                    check_coco(app, &ds, file, task).await
+                    check_coco(app, &ds, &from, file, task).await
                 }
-                None => check(app, &ds, file, &protocols).await,
+                None => check(app, &ds, &from, file, &protocols).await,
             },
             Err(e) => Err(e),
         };
@@ -196,7 +276,7 @@ pub async fn submit_under(
         &Described {
             method: &method,
             meta: &meta,
-            protocols: &protocols,
+            protocols: &protocols.scored,
             visibility,
             hardware: &hardware,
         },
@@ -226,7 +306,7 @@ async fn unpack_archives(app: &App, files: Vec<UploadedFile>) -> AppResult<Vec<U
 
 /// The dataset a file is for: the field when given, else the one its name
 /// `METHOD_DATASET-SPLIT.csv` says; both given must agree.
-fn file_dataset(field: Option<&str>, file_name: &str) -> AppResult<String> {
+pub fn file_dataset(field: Option<&str>, file_name: &str) -> AppResult<String> {
     let named = results::parse_result_filename(file_name).map(|n| n.dataset);
     match (field, named) {
         (Some(field), Some(named)) if field != named => Err(AppError::Invalid {
@@ -268,20 +348,20 @@ fn file_problems(file_name: &str, e: AppError) -> Vec<LineProblem> {
 async fn check(
     app: &App,
     dataset: &str,
+    from: &str,
     file: UploadedFile,
-    protocols: &[ProtocolName],
+    protocols: &Protocols,
 ) -> AppResult<Checked> {
-    let row = app
-        .store
-        .dataset_by_name(dataset)
-        .await?
-        .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
+    let row = served(app, dataset, from).await?;
     let loaded: Arc<evaluator::Dataset> = app.dataset(&row).await?;
 
     // Parsing and the coverage check are CPU work: off the async threads, in one go.
-    let (path, ps) = (file.tmp.to_path_buf(), protocols.to_vec());
+    let (path, ps) = (file.tmp.to_path_buf(), protocols.clone());
     let parsed = tokio::task::spawn_blocking(move || {
-        results::load_results(&path).map(|r| (r.estimates.len(), Preflight::of(&loaded, &r, &ps)))
+        results::load_results(&path).map(|r| {
+            let preflight = Preflight::of(&loaded, &r, &ps.scored, &ps.warned);
+            (r.estimates.len(), preflight)
+        })
     })
     .await
     .map_err(|e| AppError::failed("checking a result file", e))?;
@@ -338,14 +418,11 @@ fn is_coco_file(name: &str) -> bool {
 async fn check_coco(
     app: &App,
     dataset: &str,
+    from: &str,
     file: UploadedFile,
     asked: Option<CocoProtocol>,
 ) -> AppResult<Checked> {
-    let row = app
-        .store
-        .dataset_by_name(dataset)
-        .await?
-        .ok_or_else(|| AppError::BadRequest(format!("unknown dataset `{dataset}`")))?;
+    let row = served(app, dataset, from).await?;
     let root = app.dataset(&row).await?.root.clone();
     let path = file.tmp.to_path_buf();
     let name = file.name.clone();

@@ -109,13 +109,16 @@ const PINNED_SQL: &str = "CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p \
 
 fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
     let protocol = parse_column("protocol", row.try_get("protocol")?)?;
+    // A record is read by people: its numbers as the protocol defines them, whenever scored.
     let parameters = row
         .try_get::<Option<String>, _>("parameters_json")?
         .map(|json| {
-            serde_json::from_str(&json).map_err(|_| StoreError::Corrupt {
-                column: "parameters_json",
-                value: json,
-            })
+            serde_json::from_str::<Parameters>(&json)
+                .map(|p| p.as_defined())
+                .map_err(|_| StoreError::Corrupt {
+                    column: "parameters_json",
+                    value: json,
+                })
         })
         .transpose()?;
     Ok(ScoreRow {

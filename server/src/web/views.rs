@@ -78,6 +78,23 @@ impl BoardFilter {
         self.curves.as_deref().is_some_and(|c| !c.is_empty())
     }
 
+    /// Whether the filter leaves out methods by their training data or input.
+    pub fn narrows(&self) -> bool {
+        [&self.training, &self.modality]
+            .iter()
+            .any(|v| v.as_deref().is_some_and(|v| !v.trim().is_empty()))
+    }
+
+    /// The query string of this board without the filters on methods.
+    pub fn unfiltered(&self) -> String {
+        BoardFilter {
+            training: None,
+            modality: None,
+            ..self.clone()
+        }
+        .query()
+    }
+
     /// The query string of this filter as it stands (for the links to the board's exports).
     pub fn query(&self) -> String {
         self.with("", "")
@@ -171,7 +188,7 @@ pub async fn leaderboard(
             _ => "s per image",
         },
         parameters: match protocol {
-            BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p))),
+            BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p)).as_defined()),
             BoardProtocol::Coco(_) => None,
         },
         stat_names: board.stat_names,
@@ -315,15 +332,11 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
             wording::queue_place(place.queued_ahead, place.running),
             wording::wait_until(eta, now)
         )),
-        (Status::Running, _, Some(eta)) => Some(if submission.work > 0 {
-            format!(
-                "{} of {} evaluated; scores expected {}",
-                submission.work_done.min(submission.work),
-                wording::count(submission.work, "estimate", "estimates"),
-                wording::wait_until(eta, now)
-            )
-        } else {
-            format!("scores expected {}", wording::wait_until(eta, now))
+        (Status::Running, _, Some(eta)) => Some(match crate::service::submissions::progress_words(
+            &submission,
+        ) {
+            Some(words) => format!("{words}; scores expected {}", wording::wait_until(eta, now)),
+            None => format!("scores expected {}", wording::wait_until(eta, now)),
         }),
         _ => None,
     };
@@ -380,7 +393,9 @@ fn preflight_text(s: &SubmissionRow) -> String {
             )
         })
         .collect();
-    let work = if evaluated.is_empty() {
+    let work = if s.task.is_some() {
+        wording::count(p.estimates, "detection", "detections")
+    } else if evaluated.is_empty() {
         wording::count(p.estimates, "estimate", "estimates")
     } else {
         evaluated.join(", ")

@@ -190,5 +190,11 @@ fn coco_service(kind: Db) {
     assert!(page.contains("bop22-seg scores") && page.contains("AR_medium"));
     assert!(page.contains("IoU 0.50:0.95 (mean)"));
     assert!(page.contains("this is the method's entry on"), "{page}");
+    // A 2D file's entries are counted as detections, not as estimates.
+    assert!(page.contains("<tr><th>Detections</th><td>"), "{page}");
+    assert!(
+        page.contains(" detections to evaluate; at upload"),
+        "{page}"
+    );
 }
 both_databases!(coco_service);

@@ -3,9 +3,9 @@
 //! exports hold every row of the board JSON with the same names and scores; the LaTeX is one
 //! complete, balanced `tabular` whose rows all have as many cells as it has columns and whose
 //! bold cells are exactly the best of each column; every score carries its record (evaluator
-//! version, protocol and parameters, dataset content hash, result file SHA-256) equal to what
-//! the store holds and to the hash of the uploaded bytes; and the exports follow a withdrawal
-//! at once.
+//! version, protocol and parameters as the protocol defines them, dataset content hash, result
+//! file SHA-256) equal to what the store holds and to the hash of the uploaded bytes; and the
+//! exports follow a withdrawal at once.
 
 use std::collections::BTreeMap;
 
@@ -308,9 +308,13 @@ fn exports(kind: Db) {
         );
         assert_eq!(record["protocol"], "bop19");
         let submission = get_json(&format!("{base}/api/v1/submissions/{id}"));
+        // The report's parameters, as the protocol defines them.
+        let used: evaluator::report::Parameters =
+            serde_json::from_value(submission["scores"]["bop19"]["parameters"].clone())
+                .expect("parameters");
         assert_eq!(
             record["parameters"],
-            submission["scores"]["bop19"]["parameters"]
+            serde_json::to_value(used.as_defined()).expect("JSON")
         );
         assert_eq!(&submission["records"]["bop19"], record);
         let page = client()

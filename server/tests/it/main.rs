@@ -28,6 +28,7 @@ mod deployment;
 mod eval_cli;
 mod exports;
 mod fair_use;
+mod first_use;
 mod hostile_input;
 mod ops;
 mod parallel_uploads;

@@ -253,7 +253,7 @@ fn api_default_private_publish_withdraw_and_the_owners_list(kind: Db) {
 both_databases!(api_default_private_publish_withdraw_and_the_owners_list);
 
 /// The fixture with every translation divided by 1000: metres instead of millimetres.
-fn in_metres(dir: &Path) -> PathBuf {
+pub(crate) fn in_metres(dir: &Path) -> PathBuf {
     let text = std::fs::read_to_string(fixtures().join("results/noisemedium_synthA-test.csv"))
         .expect("fixture");
     let mut out = String::new();
@@ -468,10 +468,15 @@ fn progress_moves_while_a_job_runs(kind: Db) {
         }
         let (done, work) = (s["work_done"].as_i64(), s["work"].as_i64().expect("work"));
         if seen.last() != Some(&done) {
+            // Evaluations, an estimate counting once under each protocol, with the estimates
+            // each protocol evaluates as the pre-flight gave them (in the pre-flight's order).
             let text = s["progress_text"].as_str().expect("progress text");
+            let per = &s["preflight"]["estimates_evaluated"];
             assert!(
                 text.contains(&format!(
-                    " of {work} estimates evaluated; scores expected in "
+                    " of {work} evaluations done ({} estimates under eccv18, {} under bop19); \
+                     scores expected in ",
+                    per["eccv18"], per["bop19"]
                 )),
                 "{kind:?}: {text}"
             );

@@ -1,7 +1,9 @@
 //! `poseboard submit` run as a researcher runs it, against the real server: it prints the
-//! scores `poseboard eval` prints for the same file (and the final submission as JSON on its
-//! last line), refuses a malformed file before uploading anything, and fails with the server's
-//! own message when the server refuses. One database is enough here: the CLI only speaks HTTP,
+//! scores `poseboard eval` computes for the same file, in percent as the site shows them (and
+//! the final submission as JSON on its last line, with the fractions), then what became of the
+//! submission (who sees it, the boards, red flags, what publishes it); it takes the dataset
+//! from the file's BOP name as the API does, refuses a malformed file before uploading
+//! anything, and fails with the server's own message when the server refuses. One database is enough here: the CLI only speaks HTTP,
 //! and the store is tested on both elsewhere.
 
 use std::path::Path;
@@ -11,15 +13,28 @@ use crate::common::{
     BIN, Db, Server, TestDb, cli_report, client, column, fixtures, get_as, reference_datasets,
     start,
 };
+use evaluator::Report;
 use serde_json::Value;
+use server::cli::eval::{Scale, table_as};
 
 /// `poseboard submit FILE` for the method `cli` on `synthA`, with `extra` arguments; the token
 /// comes from the environment like a script's would.
 fn submit(server: &Server, token: &str, file: &Path, extra: &[&str]) -> Output {
+    submit_as(
+        server,
+        token,
+        file,
+        &["--method", "cli", "--dataset", "synthA"],
+        extra,
+    )
+}
+
+/// `poseboard submit FILE` with the method and dataset arguments `naming` and `extra` ones.
+fn submit_as(server: &Server, token: &str, file: &Path, naming: &[&str], extra: &[&str]) -> Output {
     Command::new(BIN)
         .arg("submit")
         .arg(file)
-        .args(["--method", "cli", "--dataset", "synthA"])
+        .args(naming)
         .args(extra)
         .env("POSEBOARD_SERVER", &server.base)
         .env("POSEBOARD_TOKEN", token)
@@ -28,30 +43,12 @@ fn submit(server: &Server, token: &str, file: &Path, extra: &[&str]) -> Output {
         .expect("poseboard submit runs")
 }
 
-/// What `poseboard eval` prints on stdout for a file.
-fn eval_stdout(dataset: &Path, file: &Path, protocol: &str) -> String {
-    let out = Command::new(BIN)
-        .args(["eval", "--protocol", protocol, "--threads", "1"])
-        .arg("--dataset")
-        .arg(dataset)
-        .arg("--results")
-        .arg(file)
-        .output()
-        .expect("poseboard eval runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).expect("utf-8")
-}
-
 fn submissions_in_database(db: &TestDb, data: &Path) -> String {
     column(db, data, "SELECT CAST(COUNT(*) AS TEXT) FROM submissions").concat()
 }
 
 #[test]
-fn submit_prints_the_scores_eval_prints() {
+fn submit_prints_the_scores_eval_computes_in_percent() {
     let dir = tempfile::tempdir().expect("tmp");
     let datasets = reference_datasets(dir.path());
     let db = TestDb::new(Db::Sqlite, "submit_cli");
@@ -64,17 +61,8 @@ fn submit_prints_the_scores_eval_prints() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "submit failed: {stderr}");
 
-    // The tables, as `poseboard eval` prints them on the same file and dataset.
-    let synth_a = datasets.join("synthA");
-    for protocol in ["bop19", "eccv18"] {
-        let table = eval_stdout(&synth_a, &file, protocol);
-        assert!(
-            stdout.contains(&table),
-            "submit's output lacks eval's {protocol} table:\n{table}\n--- submit printed:\n{stdout}"
-        );
-    }
-
     // The last line is the submission as the server has it, with its id and scores.
+    let synth_a = datasets.join("synthA");
     let last = stdout.lines().last().expect("a last line");
     let printed: Value = serde_json::from_str(last).expect("the last line is JSON");
     let id = printed["id"].as_i64().expect("an id");
@@ -101,7 +89,31 @@ fn submit_prints_the_scores_eval_prints() {
                 "{protocol} {key}"
             );
         }
+        // The tables, as `poseboard eval` prints them on the same file and dataset, with the
+        // scores in percent.
+        let report: Report = serde_json::from_value(report).expect("a report");
+        let table = table_as(&report, Scale::Percent);
+        assert!(
+            stdout.contains(&table),
+            "submit's output lacks the {protocol} table:\n{table}\n--- submit printed:\n{stdout}"
+        );
     }
+    // In percent as the submission's page shows them.
+    let page = get_as(&format!("{}/submissions/{id}", server.base), &server.token)
+        .text()
+        .expect("page");
+    let ar = format!(
+        "{:.1}",
+        printed["scores"]["bop19"]["bop19_average_recall"]
+            .as_f64()
+            .expect("AR")
+            * 100.0
+    );
+    assert!(
+        page.contains(&format!("<td class=\"strong\">{ar}</td>")),
+        "{page}"
+    );
+    assert!(stdout.contains(&format!("AR {ar}   AR_VSD")), "{stdout}");
 
     // The same over https, through a TLS front whose self-signed certificate only `--ca-cert`
     // vouches for: refused without it, the same submission and tables with it.
@@ -133,7 +145,10 @@ fn submit_prints_the_scores_eval_prints() {
         "the same file for the same method"
     );
     assert_eq!(again["scores"], printed["scores"]);
-    assert!(over_tls.contains(&eval_stdout(&synth_a, &file, "bop19")));
+    assert!(
+        over_tls.contains(&format!("AR {ar}   AR_VSD")),
+        "{over_tls}"
+    );
 }
 
 /// An https:// address in front of the plain-HTTP test server, as a reverse proxy terminating
@@ -262,10 +277,13 @@ fn a_refused_upload_fails_with_the_servers_message() {
     assert!(stderr.contains(message), "{stderr}");
     assert!(stderr.contains("401"), "{stderr}");
 
-    // A dataset the server does not serve: refused by the server, with its reason.
+    // A dataset the server does not serve: refused by the server, with its reason (a file
+    // named for another dataset than `--dataset` is refused before, see below).
+    let nosuch = dir.path().join("cli_nosuch-test.csv");
+    std::fs::copy(&file, &nosuch).expect("copy");
     let out = Command::new(BIN)
         .arg("submit")
-        .arg(&file)
+        .arg(&nosuch)
         .args(["--method", "cli", "--dataset", "nosuch"])
         .args(["--server", &server.base, "--token", &server.token])
         .env_remove("POSEBOARD_SERVER")
@@ -274,7 +292,13 @@ fn a_refused_upload_fails_with_the_servers_message() {
         .expect("runs");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(stderr.contains("the server answered 4"), "{stderr}");
+    assert!(
+        stderr.contains(
+            "the server answered 400 Bad Request: unknown dataset `nosuch` (from the field \
+             `dataset`): this server serves synthA"
+        ),
+        "{stderr}"
+    );
     assert_eq!(submissions_in_database(&db, &data), "0");
 
     // No server at all.
@@ -291,4 +315,138 @@ fn a_refused_upload_fails_with_the_servers_message() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// The outcome `--json` adds to the submission, after checking that the run succeeded; and
+/// what the run printed.
+fn outcome(out: Output) -> (Value, String) {
+    let stdout = String::from_utf8(out.stdout).expect("utf-8");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let last: Value =
+        serde_json::from_str(stdout.lines().last().expect("a last line")).expect("JSON");
+    (last, stdout)
+}
+
+#[test]
+fn submit_says_what_became_of_the_submission() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(Db::Sqlite, "submit_cli");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    let file = fixtures().join("results/noisesmall_synthA-test.csv");
+    let naming = ["--method", "plain"];
+
+    // A plain upload, its dataset read from the file's name: private, and how to publish it.
+    let (last, stdout) = outcome(submit_as(
+        &server,
+        &server.token,
+        &file,
+        &naming,
+        &["--json"],
+    ));
+    let id = last["id"].as_i64().expect("an id");
+    assert_eq!(last["dataset"], "synthA");
+    let publish = format!(
+        "`poseboard submit {} --method plain --visibility public`",
+        file.display()
+    );
+    assert!(
+        stdout.contains(&format!("private: only you see it; publish with {publish}")),
+        "{stdout}"
+    );
+    assert!(stdout.contains("not on a board"), "{stdout}");
+    let url = format!("{}/submissions/{id}", server.base);
+    assert!(stdout.contains(&url), "{stdout}");
+    let o = &last["outcome"];
+    assert_eq!(o["visibility"], "private");
+    assert_eq!(o["on_board"], serde_json::json!([]));
+    assert_eq!(o["red_flags"], serde_json::json!([]));
+    assert!(
+        o["publish"].as_str().expect("how").contains(&publish),
+        "{o}"
+    );
+    // The scores in the JSON stay fractions.
+    let ar = last["scores"]["bop19"]["bop19_average_recall"]
+        .as_f64()
+        .expect("AR");
+    assert!((0.0..=1.0).contains(&ar), "{ar}");
+
+    // The command it names publishes it: now on both boards.
+    let (last, stdout) = outcome(submit_as(
+        &server,
+        &server.token,
+        &file,
+        &naming,
+        &["--visibility", "public", "--json"],
+    ));
+    assert_eq!(last["id"], id);
+    let o = &last["outcome"];
+    assert_eq!(o["visibility"], "public");
+    assert_eq!(o["on_board"], serde_json::json!(["bop19", "eccv18"]));
+    assert_eq!(o["publish"], Value::Null);
+    assert!(
+        stdout.contains("on the bop19 board: this is the method's entry on the dataset"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("publish with"), "{stdout}");
+
+    // A file in metres asked to be public: held, with its red flag and what publishes it.
+    let metres = crate::publishing::in_metres(dir.path());
+    let (last, stdout) = outcome(submit_as(
+        &server,
+        &server.token,
+        &metres,
+        &["--method", "metres"],
+        &["--visibility", "public", "--json"],
+    ));
+    let held = last["id"].as_i64().expect("an id");
+    let o = &last["outcome"];
+    assert_eq!(o["visibility"], "held");
+    assert_eq!(o["on_board"], serde_json::json!([]));
+    assert!(
+        o["red_flags"][0]
+            .as_str()
+            .expect("a flag")
+            .starts_with("translations look like metres"),
+        "{o}"
+    );
+    assert!(
+        stdout.contains("held: private until you confirm publishing it despite its red flags"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("red flag: translations look like metres"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!(
+            "to publish anyway, confirm on {}/submissions/{held}",
+            server.base
+        )),
+        "{stdout}"
+    );
+
+    // A file named for another dataset than the one given is refused before any upload, as
+    // the API refuses it; a name that says no dataset needs `--dataset`.
+    let other = dir.path().join("plain_synthB-test.csv");
+    std::fs::copy(&file, &other).expect("copy");
+    let out = submit(&server, &server.token, &other, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("is named for dataset `synthB`, but the field `dataset` says `synthA`"),
+        "{stderr}"
+    );
+    let unnamed = dir.path().join("results.csv");
+    std::fs::copy(&file, &unnamed).expect("copy");
+    let out = submit_as(&server, &server.token, &unnamed, &naming, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("METHOD_DATASET-SPLIT.csv"), "{stderr}");
+    assert_eq!(submissions_in_database(&db, &data), "2");
 }

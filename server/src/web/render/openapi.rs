@@ -83,7 +83,7 @@ fn paths() -> Value {
                         "properties": {
                             "method": { "type": "string", "maxLength": 100 },
                             "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
-                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"], "description": "default: bop19 and eccv18 for a CSV file; for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop19,eccv18", "bop22-det", "bop22-seg"], "description": "default: a CSV file is scored under bop19 and eccv18, its pre-flight warning about bop19's selection only (`bop19,eccv18` for both's); for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
                             "description": { "type": "string" },
                             "paper_url": { "type": "string" },
                             "code_url": { "type": "string" },

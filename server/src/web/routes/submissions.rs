@@ -14,7 +14,7 @@ use tokio::io::AsyncWriteExt;
 use crate::app::App;
 use crate::domain::{CocoProtocol, Description, Hardware, Link, MethodName, Visibility, optional};
 use crate::error::{AppError, AppResult};
-use crate::service::submissions::{Upload, UploadedFile};
+use crate::service::submissions::{Protocols, Upload, UploadedFile};
 use crate::store::methods::MethodMeta;
 
 /// Longest accepted text field (method description and the like).
@@ -48,17 +48,25 @@ impl Fields {
     pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
         let method = MethodName::parse(&self.method)?;
         let (protocols, task) = match self.protocol.trim() {
-            "" => (vec![ProtocolName::Bop19, ProtocolName::Eccv18], None),
+            "" => (Protocols::asked(&[]), None),
             p => match CocoProtocol::from_str(p) {
-                Ok(task) => (Vec::new(), Some(task)),
-                Err(_) => (
-                    vec![ProtocolName::from_str(p).map_err(|_| {
-                        AppError::BadRequest(format!(
-                            "unknown protocol `{p}` (bop19, eccv18, bop22-det or bop22-seg)"
-                        ))
-                    })?],
-                    None,
-                ),
+                Ok(task) => (Protocols::default(), Some(task)),
+                Err(_) => {
+                    // One protocol, or both as `bop19,eccv18`.
+                    let mut asked = Vec::new();
+                    for name in p.split(',').map(str::trim) {
+                        let name = ProtocolName::from_str(name).map_err(|_| {
+                            AppError::BadRequest(format!(
+                                "unknown protocol `{name}` (bop19, eccv18, bop19,eccv18, \
+                                 bop22-det or bop22-seg)"
+                            ))
+                        })?;
+                        if !asked.contains(&name) {
+                            asked.push(name);
+                        }
+                    }
+                    (Protocols::asked(&asked), None)
+                }
             },
         };
         let visibility = match self.visibility.trim() {
