@@ -7,6 +7,7 @@ use crate::domain::{MethodForm, MethodId, SubmissionId, UserId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
+use crate::store::submissions::{Status, SubmissionRow};
 
 fn may_change(user: &User, owner: Option<UserId>) -> bool {
     user.is_admin || owner == Some(user.id)
@@ -28,8 +29,28 @@ pub async fn edit(app: &App, user: &User, id: MethodId, form: MethodForm) -> App
     app.store.method(id).await?.ok_or(AppError::NotFound)
 }
 
+/// Why `s` cannot be pinned, if it cannot: only a public finished submission is ever an entry,
+/// so a pin on any other would be answered yet change nothing.
+pub fn pin_refusal(s: &SubmissionRow) -> Option<String> {
+    let why = match s.status {
+        Status::Queued => "it is queued; pin it once its scores are in",
+        Status::Running => "it is being evaluated; pin it once its scores are in",
+        Status::Failed => "its evaluation failed",
+        Status::Done if s.hidden => "an administrator hid it",
+        Status::Done if s.held => {
+            "its publication is held back by red flags; confirm publishing it first"
+        }
+        Status::Done if !s.is_public() => "it is private; publish it first",
+        Status::Done => return None,
+    };
+    Some(format!(
+        "only a public finished submission can be pinned: {why}"
+    ))
+}
+
 /// Pins a submission as its method's entry on its dataset (for every protocol), or unpins it:
-/// the best public finished submission is the entry again.
+/// the best public finished submission is the entry again. Pinning one that cannot be an entry
+/// is refused (409) with the reason; unpinning always may.
 pub async fn pin(
     app: &App,
     user: &User,
@@ -47,6 +68,9 @@ pub async fn pin(
         } else {
             AppError::NotFound
         });
+    }
+    if let Some(why) = pin_refusal(&submission).filter(|_| pinned) {
+        return Err(AppError::Conflict(why));
     }
     app.store.set_pinned(submission_id, pinned).await?;
     Ok(())

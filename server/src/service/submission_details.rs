@@ -13,7 +13,7 @@ use evaluator::protocol::ProtocolName;
 use crate::app::App;
 use crate::domain::{BoardProtocol, SubmissionId};
 use crate::error::AppResult;
-use crate::service::{submissions, visibility};
+use crate::service::{methods, submissions, visibility};
 use crate::store::accounts::User;
 use crate::store::scores::ScoreRecord;
 use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
@@ -36,6 +36,8 @@ pub struct Details {
     pub entries: Vec<(BoardProtocol, SubmissionId, bool)>,
     /// Its owner pinned it as the method's entry on this dataset.
     pub pinned: bool,
+    /// Why it cannot be pinned, if it cannot (see [`methods::pin_refusal`]).
+    pub pin_refusal: Option<String>,
 }
 
 /// Submission `id` as `reader` may see it (see [`visibility::submission`]).
@@ -74,6 +76,7 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
     }
     Ok(Details {
         pinned: app.store.is_pinned(id).await?,
+        pin_refusal: methods::pin_refusal(&submission),
         submission,
         queue,
         eta_seconds,

@@ -267,6 +267,9 @@ pub struct SubmissionView {
     pub entries: Vec<EntryStatus>,
     /// Its owner pinned it as the method's entry on this dataset.
     pub pinned: bool,
+    /// Why it cannot be pinned, if it cannot: the page then offers no pin button.
+    #[serde(skip)]
+    pub pin_refusal: Option<String>,
     /// For its owner and the administrators: where to download it and what they can do.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub owner: Option<OwnerLinks>,
@@ -355,6 +358,7 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
     Ok(SubmissionView {
         entries,
         pinned: details.pinned,
+        pin_refusal: details.pin_refusal,
         preflight_text: preflight_text(&submission),
         preflight: submission.preflight.clone(),
         queue_position: details.queue.map(|q| q.queued_ahead),

@@ -32,6 +32,7 @@ mod first_use;
 mod hostile_input;
 mod ops;
 mod parallel_uploads;
+mod pinning;
 mod prepare_cli;
 mod publishing;
 mod ranking;
