@@ -15,7 +15,8 @@ use serde::{Deserialize, Serialize};
 use crate::app::App;
 use crate::board_cache::{BoardKey, Rendered};
 use crate::domain::{
-    BoardProtocol, DEMO_DATASET, FieldError, MethodId, Modality, TrainingData, optional,
+    BoardProtocol, DEMO_DATASET, FieldError, MethodId, Modality, SubmissionId, TrainingData,
+    optional,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
@@ -204,6 +205,16 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     };
     ranking::intervals(&mut rows, &columns, &replicates);
     ranking::rank(&mut rows);
+    let shown: Vec<SubmissionId> = rows
+        .iter()
+        .flat_map(|r| r.scores.values().map(|c| c.submission_id))
+        .collect();
+    let flags = app.store.red_flags(&shown).await?;
+    for cell in rows.iter_mut().flat_map(|r| r.scores.values_mut()) {
+        if let Some(f) = flags.get(&cell.submission_id) {
+            cell.red_flags = f.clone();
+        }
+    }
     let drawn: Vec<&BoardRow> = match &selected {
         None => Vec::new(),
         Some(_) => ranking::drawn(&rows, query.curves.as_deref(), OVERLAID),
@@ -287,6 +298,7 @@ fn pose_entry(e: BoardEntry) -> Entry {
             ci95: e.score.ci95,
             score_id: Some(e.score.id),
             stats: BTreeMap::new(),
+            red_flags: Vec::new(),
         },
         method_id: e.method_id,
         method: e.method,
@@ -315,6 +327,7 @@ fn coco_entry(e: &CocoBoardEntry) -> Entry {
             ci95: None,
             score_id: None,
             stats: e.report.stats().into_iter().collect(),
+            red_flags: Vec::new(),
         },
         method_id: e.method_id,
         method: e.method.clone(),

@@ -10,6 +10,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use serde::Serialize;
 
 use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
+use crate::preflight::RedFlag;
 use crate::store::datasets::DatasetRow;
 use crate::store::scores::ScoreRecord;
 
@@ -37,6 +38,10 @@ pub struct Cell {
     /// 2D boards: the twelve AP/AR numbers of the report under the toolkit's keys.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub stats: BTreeMap<&'static str, f64>,
+    /// The pre-flight's red flags its owner confirmed publishing it despite; empty for a clean
+    /// file (a public submission with red flags was published by that confirmation).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub red_flags: Vec<RedFlag>,
 }
 
 impl Cell {
@@ -363,6 +368,7 @@ mod tests {
                 ci95: Some([score - 0.01, score + 0.01]),
                 score_id: Some(method_id * 10 + d_id),
                 stats: BTreeMap::new(),
+                red_flags: Vec::new(),
             },
             objects: BTreeMap::from([(d_id, score), (d_id + 10, score / 2.0)]),
         }

@@ -4,6 +4,7 @@
 //! can neither exceed the limit nor trip over each other's new method, and an upload of
 //! several files is stored whole or not at all.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
@@ -19,7 +20,7 @@ use crate::clock::now_ms;
 use crate::domain::{
     CocoProtocol, DatasetId, Hardware, MethodId, MethodName, SubmissionId, UserId, Visibility,
 };
-use crate::preflight::Preflight;
+use crate::preflight::{Preflight, RedFlag};
 
 /// Lifecycle of a submission (which is also its evaluation job).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -313,6 +314,38 @@ pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
 }
 
 impl Store {
+    /// The red flags of those of the submissions `ids` that have any.
+    pub async fn red_flags(
+        &self,
+        ids: &[SubmissionId],
+    ) -> StoreResult<BTreeMap<SubmissionId, Vec<RedFlag>>> {
+        let mut out = BTreeMap::new();
+        // In slices, so that no statement has more parameters than a database takes.
+        for chunk in ids.chunks(500) {
+            let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
+            // Only the placeholders' count comes from the caller.
+            let sql = format!(
+                "SELECT id, preflight_json FROM submissions WHERE id IN ({})",
+                marks.join(", ")
+            );
+            let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
+            for id in chunk {
+                query = query.bind(*id);
+            }
+            for r in query.fetch_all(&self.pool).await? {
+                let text: String = r.try_get("preflight_json")?;
+                let preflight: Preflight =
+                    serde_json::from_str(&text).map_err(|_| StoreError::Corrupt {
+                        column: "preflight_json",
+                        value: text,
+                    })?;
+                if !preflight.red_flags.is_empty() {
+                    out.insert(r.try_get("id")?, preflight.red_flags);
+                }
+            }
+        }
+        Ok(out)
+    }
     /// Creates one submission; see [`Store::create_submissions`].
     pub async fn create_submission(
         &self,

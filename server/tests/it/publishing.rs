@@ -322,6 +322,27 @@ fn red_flags_hold_publication_and_the_form_publishes(kind: Db) {
         page.contains("held: translations look like metres"),
         "{kind:?}"
     );
+    // Held is visible: a "held" badge, not a green "done", and the reason by the scores.
+    assert!(
+        page.contains(
+            r#"<span class="status held" id="status-text">held: needs your confirmation</span>"#
+        ),
+        "{kind:?}: {page}"
+    );
+    assert!(!page.contains(r#"class="status done""#), "{kind:?}");
+    let reason = page
+        .find(r#"<p class="alert held" id="held-reason">"#)
+        .expect("the reason it is held");
+    let scores = page.find("<h2>BOP'19 scores</h2>").expect("the scores");
+    assert!(
+        reason < scores,
+        "{kind:?}: the reason comes with the scores"
+    );
+    assert!(
+        page[reason..scores].contains("translations look like metres"),
+        "{kind:?}: {}",
+        &page[reason..scores]
+    );
     assert_eq!(
         get_as(&format!("{base}/submissions/{id}"), "").status(),
         404
@@ -336,9 +357,32 @@ fn red_flags_hold_publication_and_the_form_publishes(kind: Db) {
     let (status, answer) = set_visibility(&server, &owner, id, &form);
     assert_eq!(status, 200, "{kind:?}: {answer}");
     assert_eq!(answer["visibility"], "public");
+    let row = board_row(&server, "metric-net").expect("confirmed: on the board");
+    // The board's row says it was published despite its red flag, in the JSON and the page.
+    let flagged: Vec<&Value> = row["scores"]
+        .as_object()
+        .expect("scores")
+        .values()
+        .filter(|c| c["submission_id"] == id)
+        .collect();
+    assert_eq!(flagged.len(), 1, "{kind:?}: {row}");
+    assert_eq!(
+        flagged[0]["red_flags"][0]["kind"], "metres",
+        "{kind:?}: {row}"
+    );
+    let board = get_as(&format!("{base}/leaderboards/bop19"), "")
+        .text()
+        .expect("html");
     assert!(
-        board_row(&server, "metric-net").is_some(),
-        "{kind:?}: confirmed"
+        board.contains(r#"<span class="red-flag" title="published despite a red flag: translations look like metres"#),
+        "{kind:?}: {board}"
+    );
+    let page = get_as(&format!("{base}/submissions/{id}"), &owner)
+        .text()
+        .expect("html");
+    assert!(
+        page.contains(r#"<span class="status done" id="status-text">done</span>"#),
+        "{kind:?}: no longer held"
     );
 
     // The form's "publish when evaluated" is ticked by default, and publishes.
@@ -374,9 +418,10 @@ fn red_flags_hold_publication_and_the_form_publishes(kind: Db) {
         .and_then(|s| s.parse().ok())
         .expect("redirected to the submission");
     common::wait_done(&base, id, Duration::from_secs(60));
+    let row = board_row(&server, "form-net").expect("published");
     assert!(
-        board_row(&server, "form-net").is_some(),
-        "{kind:?}: published"
+        !row.to_string().contains("red_flags"),
+        "{kind:?}: no flag on a clean file: {row}"
     );
 }
 both_databases!(red_flags_hold_publication_and_the_form_publishes);
