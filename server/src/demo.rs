@@ -45,6 +45,11 @@ pub struct SynthOptions {
     /// (width, height) of the images; the intrinsics scale with it, so every size shows the
     /// same scenes with the same ground truth.
     pub image_size: (u32, u32),
+    /// Object ids 1 to `objects` (at least the six shapes): beyond six, copies of the shapes
+    /// under further ids, so that a dataset as wide as T-LESS (30 objects) can be made small.
+    /// Object `s + 6k` is a copy of shape `s`; the instances of a shape in a scene take its
+    /// ids in turn.
+    pub objects: u32,
 }
 
 impl Default for SynthOptions {
@@ -54,6 +59,7 @@ impl Default for SynthOptions {
             scenes: 3,
             images_per_scene: 4,
             image_size: (scenes::WIDTH, scenes::HEIGHT),
+            objects: shapes::SHAPES,
         }
     }
 }
@@ -89,10 +95,16 @@ pub fn write_dataset(dir: &Path, opts: &SynthOptions) -> Result<()> {
             bail!("{} is not empty", dir.display());
         }
     }
+    if opts.objects < shapes::SHAPES {
+        bail!(
+            "the synthetic dataset has at least its {} shapes as objects",
+            shapes::SHAPES
+        );
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
 
     let shapes = shapes::shapes();
-    shapes::write_models(dir, &shapes)?;
+    shapes::write_models(dir, &shapes, opts.objects)?;
     let k = scenes::cam_k(opts.image_size);
     let camera = serde_json::to_value(CameraInfo {
         cx: k[2],
@@ -190,6 +202,34 @@ mod tests {
         assert!(d.objects[&2].info.symmetries_discrete.len() == 3);
         assert!(!d.objects[&1].info.is_symmetric());
         assert_eq!(d.objects[&3].info.symmetries_continuous.len(), 1);
+    }
+
+    #[test]
+    fn thirty_objects_are_copies_of_the_shapes_and_all_are_targets() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("synth30");
+        let opts = SynthOptions {
+            scenes: 1,
+            images_per_scene: 16,
+            image_size: (320, 240),
+            objects: 30,
+            ..SynthOptions::default()
+        };
+        write_dataset(&dir, &opts).unwrap();
+        let d = evaluator::Dataset::load(&dir).unwrap();
+        assert_eq!(
+            d.objects.keys().copied().collect::<Vec<_>>(),
+            (1..=30).collect::<Vec<_>>()
+        );
+        // Object 8 is a copy of shape 2 (three-fold symmetric), 9 of shape 3 (round).
+        assert_eq!(d.objects[&8].info.symmetries_discrete.len(), 3);
+        assert_eq!(d.objects[&9].info.symmetries_continuous.len(), 1);
+        let targeted: std::collections::BTreeSet<u32> =
+            d.targets.iter().map(|t| t.obj_id).collect();
+        assert_eq!(targeted.len(), 30, "{targeted:?}");
+        // Fewer objects than shapes is refused.
+        let five = SynthOptions { objects: 5, ..opts };
+        assert!(write_dataset(&tmp.path().join("five"), &five).is_err());
     }
 
     #[test]

@@ -58,6 +58,10 @@ pub enum DatasetCommand {
         /// compare with a miniature of the same size.
         #[arg(long, value_parser = parse_size)]
         size: Option<(u32, u32)>,
+        /// Object ids 1 to N (at least 6): beyond the six shapes, copies of them under further
+        /// ids, e.g. 30 for a board as wide as T-LESS's.
+        #[arg(long, default_value_t = SynthOptions::default().objects)]
+        objects: u32,
     },
     /// Compute once what scoring needs of DIR whatever the result file (decoded depth,
     /// ground-truth renders), for `poseboard eval` and the Python package to read; checks and
@@ -179,12 +183,14 @@ pub fn dataset(cmd: DatasetCommand) -> anyhow::Result<()> {
             images_per_scene,
             layout,
             size,
+            objects,
         } => {
             let opts = SynthOptions {
                 seed,
                 scenes,
                 images_per_scene,
                 image_size: size.unwrap_or(SynthOptions::default().image_size),
+                objects,
             };
             match layout {
                 None => write_dataset(&dir, &opts)?,

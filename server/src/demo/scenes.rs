@@ -132,6 +132,7 @@ pub(super) fn write_scene(
     let mut infos = BTreeMap::new();
     let mut coco = CocoFiles::default();
     let mut targets = Vec::new();
+    let mut copies = Copies::new(shapes.len() as u32, opts.objects);
     let n = opts.images_per_scene;
     for im_id in 0..n {
         let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
@@ -140,7 +141,12 @@ pub(super) fn write_scene(
             truncated: im_id == 1 % n,
             hidden: im_id == 2 % n,
         };
-        let image = make_image(&mut rng, shapes, roles, opts.image_size);
+        let mut image = make_image(&mut rng, shapes, roles, opts.image_size);
+        for (gt, info) in image.gt.iter_mut().zip(&image.info) {
+            if info.visib_fract >= MIN_VISIB_FRACT {
+                gt.obj_id = copies.next(gt.obj_id);
+            }
+        }
         let name = format!("{im_id:06}.png");
         write_depth_png(
             &dir.join("depth").join(&name),
@@ -175,9 +181,41 @@ pub(super) fn write_scene(
     write_json_object(&dir.join("scene_camera.json"), &cameras)?;
     write_json_object(&dir.join("scene_gt.json"), &gts)?;
     write_json_object(&dir.join("scene_gt_info.json"), &infos)?;
-    let categories: Vec<u32> = shapes.iter().map(|s| s.id).collect();
+    let categories: Vec<u32> = (1..=opts.objects).collect();
     coco.write(&dir, &categories)?;
     Ok(targets)
+}
+
+/// The object ids of a scene's instances when there are more objects than shapes: object
+/// `s + k * shapes` is a copy of shape `s`, and the visible instances of a shape (the targets)
+/// take its copies' ids in turn, so that every id is a target once a shape has been seen as
+/// often as it has copies; an instance too hidden to be a target keeps its shape's id.
+/// With as many objects as shapes every instance keeps its shape's id (and the random draws,
+/// hence the files, are the same as without copies).
+struct Copies {
+    shapes: u32,
+    objects: u32,
+    /// Instances of each shape so far, by shape id.
+    placed: BTreeMap<u32, u32>,
+}
+
+impl Copies {
+    fn new(shapes: u32, objects: u32) -> Copies {
+        Copies {
+            shapes,
+            objects,
+            placed: BTreeMap::new(),
+        }
+    }
+
+    /// The id of the next instance of shape `shape_id`.
+    fn next(&mut self, shape_id: u32) -> u32 {
+        let copies = (self.objects - shape_id) / self.shapes + 1;
+        let n = self.placed.entry(shape_id).or_insert(0);
+        let id = shape_id + (*n % copies) * self.shapes;
+        *n += 1;
+        id
+    }
 }
 
 /// The scene's `scene_gt_coco.json` (amodal boxes) and `scene_gt_coco_modal.json` (modal

@@ -20,6 +20,9 @@ use super::files::{write_json_object, write_ply};
 /// symmetry is a good description of the mesh.
 const ROUND_SEGMENTS: usize = 48;
 
+/// How many shapes [`shapes`] makes.
+pub(super) const SHAPES: u32 = 6;
+
 pub(super) struct Shape {
     pub id: u32,
     pub mesh: Mesh,
@@ -448,17 +451,18 @@ fn model_info(shape: &Shape) -> ModelInfo {
 
 /// Writes `models/` and its identical copy `models_eval/` (bop_toolkit evaluates with the
 /// latter).
-pub(super) fn write_models(root: &Path, shapes: &[Shape]) -> Result<()> {
-    let infos: Vec<(u32, ModelInfo)> = shapes.iter().map(|s| (s.id, model_info(s))).collect();
+/// Objects 1 to `objects`: object `id` is shape `(id - 1) % shapes.len()`.
+pub(super) fn write_models(root: &Path, shapes: &[Shape], objects: u32) -> Result<()> {
+    let shape_of = |id: u32| &shapes[(id as usize - 1) % shapes.len()];
+    let infos: Vec<(u32, ModelInfo)> = (1..=objects)
+        .map(|id| (id, model_info(shape_of(id))))
+        .collect();
     for folder in ["models", "models_eval"] {
         let dir = root.join(folder);
         std::fs::create_dir_all(&dir)?;
-        for s in shapes {
-            write_ply(
-                &dir.join(format!("obj_{:06}.ply", s.id)),
-                &s.mesh,
-                &s.normals,
-            )?;
+        for id in 1..=objects {
+            let s = shape_of(id);
+            write_ply(&dir.join(format!("obj_{id:06}.ply")), &s.mesh, &s.normals)?;
         }
         write_json_object(
             &dir.join("models_info.json"),
