@@ -313,6 +313,106 @@ impl CocoProtocol {
     }
 }
 
+/// A task an upload can be scored for: the value of the upload's `protocol` field (the form's
+/// and the API's), and what it means. The one list the upload form offers and the errors name,
+/// so that a task added here is offered wherever a task is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UploadTask {
+    /// The `protocol` field's value; empty: the default.
+    pub value: &'static str,
+    /// What it scores, for the form.
+    pub label: &'static str,
+}
+
+impl UploadTask {
+    pub const ALL: &'static [UploadTask] = &[
+        UploadTask {
+            value: "",
+            label: "6D poses: bop19, scored under eccv18 as well (the default)",
+        },
+        UploadTask {
+            value: "bop19",
+            label: "6D poses: bop19 only, the BOP Challenge average recall",
+        },
+        UploadTask {
+            value: "eccv18",
+            label: "6D poses: eccv18 only, the ECCV'18 paper's VSD recall",
+        },
+        UploadTask {
+            value: "bop19,eccv18",
+            label: "6D poses: both, with each one's warnings (eccv18 considers one estimate per target)",
+        },
+        UploadTask {
+            value: "bop22-det",
+            label: "2D detection: bop22-det, boxes scored by AP (BOP'22 COCO JSON)",
+        },
+        UploadTask {
+            value: "bop22-seg",
+            label: "2D segmentation: bop22-seg, masks scored by AP (BOP'22 COCO JSON)",
+        },
+    ];
+
+    /// The values, for a message: "bop19, eccv18, bop19,eccv18, bop22-det or bop22-seg".
+    pub fn values() -> String {
+        let named: Vec<&str> = UploadTask::ALL
+            .iter()
+            .map(|t| t.value)
+            .filter(|v| !v.is_empty())
+            .collect();
+        match named.split_last() {
+            Some((last, [])) => (*last).to_string(),
+            Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+            None => String::new(),
+        }
+    }
+}
+
+/// A kind of result file an upload takes, told apart by its name's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FileKind {
+    /// ".csv"
+    pub extension: &'static str,
+    /// Its media type, for the form's file chooser.
+    pub media_type: &'static str,
+    /// What it holds and is for.
+    pub purpose: &'static str,
+}
+
+impl FileKind {
+    pub const ALL: &'static [FileKind] = &[
+        FileKind {
+            extension: ".csv",
+            media_type: "text/csv",
+            purpose: "BOP'19 6D pose results, one file per dataset named METHOD_DATASET-test.csv: \
+                      scene_id,im_id,obj_id,score,R,t,time with R row-major (9 numbers), t in mm \
+                      and the time of the whole image in seconds",
+        },
+        FileKind {
+            extension: ".json",
+            media_type: "application/json",
+            purpose: "BOP'22 2D detections or segmentations (COCO format), one file per dataset \
+                      named METHOD_DATASET-test.json: a list of {scene_id, image_id, category_id, \
+                      score, bbox, segmentation, time}; the task is read from the content unless \
+                      chosen above",
+        },
+        FileKind {
+            extension: ".zip",
+            media_type: "application/zip",
+            purpose: "several of the files above at once, e.g. the seven core datasets: one \
+                      submission per file",
+        },
+    ];
+
+    /// The form's `accept` attribute: every extension and media type.
+    pub fn accept() -> String {
+        FileKind::ALL
+            .iter()
+            .flat_map(|k| [k.extension, k.media_type])
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+}
+
 /// What a leaderboard ranks: a 6D protocol's scores or a 2D task's AP. Written as its name
 /// (`bop19`, `eccv18`, `bop22-det`, `bop22-seg`) in URLs and JSON.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]

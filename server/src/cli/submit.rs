@@ -286,7 +286,32 @@ fn upload(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) -> Re
         .send();
     bar.finish_and_clear();
     let response = response.with_context(|| format!("cannot upload to {server}"))?;
-    answer(response)
+    let over_limit = response.status() == reqwest::StatusCode::TOO_MANY_REQUESTS;
+    let answered = answer(response);
+    match answered {
+        // Over the fair-use limit: what is left on the dataset, as the upload form shows it.
+        Err(refused) if over_limit => match quota(client, server, &args.token, dataset) {
+            Ok(left) => Err(anyhow::anyhow!("{refused}\n{dataset}: {left}")),
+            Err(_) => Err(refused),
+        },
+        answered => answered,
+    }
+}
+
+/// The caller's quota on `dataset` in words ("none left today: the next at ...").
+fn quota(client: &Client, server: &str, token: &str, dataset: &str) -> Result<String> {
+    let response = client
+        .get(format!("{server}/api/v1/me/quota"))
+        .query(&[("dataset", dataset)])
+        .bearer_auth(token)
+        .timeout(Duration::from_secs(60))
+        .send()
+        .with_context(|| format!("cannot reach {server}"))?;
+    let quota = answer(response)?;
+    quota["summary"]
+        .as_str()
+        .map(str::to_string)
+        .context("the server's quota has no summary")
 }
 
 /// Polls the submission until it is done (its JSON) or failed (an error with its message).

@@ -16,6 +16,7 @@
 //! asked for or read from its content, and pre-flighted against the dataset's target images.
 
 mod archive;
+pub mod quota;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -662,6 +663,15 @@ struct Kept {
     preflight: Preflight,
 }
 
+/// The fair-use window in words: "24 hours" for the default day, else its seconds.
+fn window(ms: i64) -> String {
+    if ms % 3_600_000 == 0 {
+        wording::count(ms / 3_600_000, "hour", "hours")
+    } else {
+        wording::count(ms / 1000, "second", "seconds")
+    }
+}
+
 /// The answer to an upload over the fair-use limit at file `file` of `files`: the next one is
 /// allowed once the oldest of the last `limit` counted submissions leaves the window.
 fn over_limit(limit: usize, window_ms: i64, times: &[i64], file: &str, files: usize) -> AppError {
@@ -677,10 +687,10 @@ fn over_limit(limit: usize, window_ms: i64, times: &[i64], file: &str, files: us
     };
     AppError::TooMany {
         message: format!(
-            "{file}: at most {limit} submissions per dataset within {} s: the next one is \
-             allowed in {} s{none}",
-            window_ms / 1000,
-            ((retry_at - now_ms()).max(0) + 999) / 1000
+            "{file}: at most {limit} submissions per dataset within {}: the next one is \
+             allowed at {}{none}",
+            window(window_ms),
+            quota::retry_time(retry_at)
         ),
         retry_at,
     }

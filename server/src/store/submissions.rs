@@ -458,6 +458,26 @@ impl Store {
         Ok(row.try_get::<i64, _>("n")? > 0)
     }
 
+    /// When `owner`'s submissions on `dataset` made since `since` (epoch ms) were made, oldest
+    /// first: those that count against the fair-use limit, as an upload counts them.
+    pub async fn counted_times(
+        &self,
+        owner: UserId,
+        dataset: DatasetId,
+        since: i64,
+    ) -> StoreResult<Vec<i64>> {
+        sqlx::query(COUNTED_TIMES)
+            .bind(owner)
+            .bind(dataset)
+            .bind(since)
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(|r| r.try_get("created_at"))
+            .collect::<Result<_, _>>()
+            .map_err(Into::into)
+    }
+
     /// Where submission `id` stands in the queue: the queued ones before it, and the running
     /// ones (other than itself). `None` asks for a submission about to be created, behind all.
     pub async fn queue_place(&self, id: Option<SubmissionId>) -> StoreResult<QueuePlace> {
@@ -658,6 +678,13 @@ impl Store {
     }
 }
 
+/// The times of one owner's submissions on one dataset since a moment, oldest first, that count
+/// against the fair-use limit: all but those that failed through the service's fault. One
+/// query for the upload's check and the quota a user is shown, so the two always agree.
+const COUNTED_TIMES: &str = "SELECT created_at FROM submissions WHERE owner_id = $1 \
+     AND dataset_id = $2 AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') \
+     ORDER BY created_at";
+
 /// What [`create_one`] did inside the upload's transaction.
 enum One {
     /// Stored (or found stored), and whether that changed the method's metadata.
@@ -702,18 +729,15 @@ async fn create_one(
         }
     }
     if let Some(limit) = fair_use {
-        let times: Vec<i64> = sqlx::query(
-            "SELECT created_at FROM submissions WHERE owner_id = $1 AND dataset_id = $2 \
-             AND created_at >= $3 AND (fault IS NULL OR fault <> 'service') ORDER BY created_at",
-        )
-        .bind(new.owner_id)
-        .bind(new.dataset_id)
-        .bind(limit.since)
-        .fetch_all(&mut **tx)
-        .await?
-        .iter()
-        .map(|r| r.try_get("created_at"))
-        .collect::<Result<_, _>>()?;
+        let times: Vec<i64> = sqlx::query(COUNTED_TIMES)
+            .bind(new.owner_id)
+            .bind(new.dataset_id)
+            .bind(limit.since)
+            .fetch_all(&mut **tx)
+            .await?
+            .iter()
+            .map(|r| r.try_get("created_at"))
+            .collect::<Result<_, _>>()?;
         if times.len() >= limit.limit {
             return Ok(One::Limited { times });
         }

@@ -43,6 +43,7 @@ mod scale_out;
 mod security;
 mod snapshots;
 mod store;
+mod submit_form;
 mod submit_cli;
 mod target_png;
 mod trust;

@@ -440,6 +440,38 @@ fn fair_use_is_exact_under_concurrency(kind: Db) {
             }
         }
         assert_eq!((created, limited), (5, 7));
+        // The times the limit counted are the ones a user is shown: five, oldest first; none
+        // on another dataset, by another owner, or before `since`.
+        let times = store.counted_times(owner, ds.id, 0).await.unwrap();
+        assert_eq!(times.len(), 5);
+        assert!(times.windows(2).all(|w| w[0] <= w[1]), "{times:?}");
+        let later = times[4] + 1;
+        assert!(
+            store
+                .counted_times(owner, ds.id, later)
+                .await
+                .unwrap()
+                .is_empty()
+        );
+        let other_ds = store
+            .register_dataset(&dataset_row("synthB"))
+            .await
+            .unwrap();
+        assert!(
+            store
+                .counted_times(owner, other_ds.id, 0)
+                .await
+                .unwrap()
+                .is_empty()
+        );
+        let stranger = user(&store, "dave").await;
+        assert!(
+            store
+                .counted_times(stranger, ds.id, 0)
+                .await
+                .unwrap()
+                .is_empty()
+        );
         // A refused upload of a new method leaves no method behind.
         let other = user(&store, "carol").await;
         let f = fixture("NeverCreated");

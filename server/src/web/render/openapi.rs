@@ -101,7 +101,7 @@ fn paths() -> Value {
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
                         "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
-                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
+                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it and when the next is allowed, as a UTC date and time): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
                     }
                 }
             },
@@ -114,6 +114,7 @@ fn paths() -> Value {
                 "security": [{ "bearer": [] }], "parameters": [id_param],
                 "requestBody": { "required": true, "content": {
                     "application/x-www-form-urlencoded": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } },
+                    "multipart/form-data": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } },
                     "application/json": { "schema": { "$ref": "#/components/schemas/VisibilityChange" } } } },
                 "responses": { "200": { "description": "{id, visibility, held, publication}" }, "400": { "description": "visibility is not public or private" },
                     "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" },
@@ -159,6 +160,11 @@ fn paths() -> Value {
                     "400": { "description": "not finished, or an unknown criterion" }, "404": { "description": "no such submission or target, or another account's private submission" } } } },
             "/api/v1/me/submissions": { "get": { "summary": "Your submissions, private ones included, newest first, with status, publication state, headline scores, download and action links",
                 "security": [{ "bearer": [] }], "responses": { "200": { "description": "{submissions: [...]}" }, "401": { "description": "no valid API token or session" } } } },
+            "/api/v1/me/quota": { "get": { "summary": "How many submissions you have left on a dataset under the fair-use limit (the number the upload form shows), and when the next one is allowed when none is left",
+                "security": [{ "bearer": [] }],
+                "parameters": [{ "name": "dataset", "in": "query", "required": true, "schema": { "type": "string" }, "description": "a served dataset's name" }],
+                "responses": { "200": { "description": "{dataset, limit (null: no limit), window_secs, used, left (null: no limit), next_at (epoch ms, when none is left), next_at_utc (the same as \"2026-12-04 17:20 UTC\"), summary (in words, as the upload form and the CLI say it)}" },
+                    "400": { "description": "no or an unknown dataset (the message lists the served ones)" }, "401": { "description": "no valid API token or session" } } } },
             "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or 2D task (bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
                 "parameters": [
                     { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },

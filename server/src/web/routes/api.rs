@@ -17,14 +17,14 @@ use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
-use crate::service::submissions::{Accepted, submit};
+use crate::service::submissions::{Accepted, quota, submit};
 use crate::service::{catalogue, downloads, methods, publishing, visibility};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
 use crate::web::routes::boards;
 use crate::web::routes::deadlines;
-use crate::web::routes::submissions::read_upload;
+use crate::web::routes::submissions::{field_text, multipart_error, read_upload};
 use crate::web::views;
 
 pub fn router(max_upload: u64) -> Router<AppState> {
@@ -55,6 +55,7 @@ pub fn router(max_upload: u64) -> Router<AppState> {
             get(target_picture),
         )
         .route("/api/v1/me/submissions", get(my_submissions))
+        .route("/api/v1/me/quota", get(my_quota))
         .route("/api/v1/leaderboards/{protocol}", get(leaderboard))
         .route("/api/v1/openapi.json", get(openapi))
 }
@@ -196,6 +197,43 @@ async fn form_or_json<T: serde::de::DeserializeOwned + 'static>(request: Request
     }
 }
 
+/// A change of visibility as JSON, a plain form, or the multipart form the upload takes (a
+/// script that uploads with `curl -F` publishes with `curl -F` too).
+async fn visibility_change(request: Request) -> AppResult<VisibilityChange> {
+    let multipart = request
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("multipart/form-data"));
+    if !multipart {
+        return form_or_json(request).await;
+    }
+    let mut form = Multipart::from_request(request, &())
+        .await
+        .map_err(|e| AppError::BadRequest(e.body_text()))?;
+    let (mut visibility, mut confirm) = (None, false);
+    while let Some(field) = form.next_field().await.map_err(multipart_error)? {
+        let name = field.name().unwrap_or_default().to_string();
+        let value = field_text(field).await?;
+        match name.as_str() {
+            "visibility" => visibility = Some(value),
+            "confirm" => {
+                confirm = value.trim().parse::<bool>().map_err(|_| {
+                    AppError::BadRequest(format!("field `confirm` is true or false, not `{value}`"))
+                })?;
+            }
+            _ => {}
+        }
+    }
+    let visibility = visibility.ok_or_else(|| {
+        AppError::BadRequest("field `visibility` (public or private) is required".into())
+    })?;
+    Ok(VisibilityChange {
+        visibility,
+        confirm,
+    })
+}
+
 async fn visibility(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -203,7 +241,7 @@ async fn visibility(
     request: Request,
 ) -> AppResult<Json<serde_json::Value>> {
     let user = viewer.require_user()?.clone();
-    let change: VisibilityChange = form_or_json(request).await?;
+    let change = visibility_change(request).await?;
     let asked = change.visibility.trim().parse::<Visibility>()?;
     let s = publishing::set_visibility(&app, &user, id, asked, change.confirm).await?;
     Ok(Json(json!({
@@ -348,6 +386,27 @@ async fn my_submissions(
 ) -> AppResult<Json<views::MySubmissions>> {
     let user = viewer.require_user()?;
     Ok(Json(views::my_submissions(&app, user).await?))
+}
+
+#[derive(Deserialize)]
+struct QuotaQuery {
+    #[serde(default)]
+    dataset: String,
+}
+
+/// How many submissions the caller has left on a dataset, as the upload form shows it.
+async fn my_quota(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Query(q): Query<QuotaQuery>,
+) -> AppResult<Json<quota::Quota>> {
+    let user = viewer.require_user()?;
+    if q.dataset.trim().is_empty() {
+        return Err(AppError::BadRequest(
+            "the parameter `dataset` (a served dataset's name) is required".into(),
+        ));
+    }
+    Ok(Json(quota::quota(&app, user, q.dataset.trim()).await?))
 }
 
 /// The same for every reader, like its page: served from the board cache.

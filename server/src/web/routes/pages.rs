@@ -17,11 +17,12 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{
-    BoardProtocol, MethodForm, MethodId, Modality, ModelScope, SubmissionId, TrainingData,
-    Visibility,
+    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SubmissionId,
+    TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::submissions;
+use crate::service::submissions::quota::{self, Quota};
 use crate::service::{catalogue, methods, publishing, visibility};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
@@ -409,10 +410,12 @@ async fn my_submissions(State(app): State<AppState>, viewer: Viewer) -> AppResul
 #[derive(Template, WebTemplate, Default)]
 #[template(path = "submit.html")]
 struct SubmitPage {
-    datasets: Vec<DatasetRow>,
+    /// The served datasets, each with the viewer's submissions left on it.
+    datasets: Vec<(DatasetRow, Quota)>,
     error: Option<ErrorBody>,
     method: String,
     dataset: String,
+    protocol: String,
     description: String,
     paper_url: String,
     code_url: String,
@@ -421,12 +424,28 @@ struct SubmitPage {
     csrf: String,
 }
 
-async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
-    if viewer.session.is_none() {
-        return Ok(Redirect::to("/login?next=/submit").into_response());
+impl SubmitPage {
+    /// The tasks the service scores, from the domain's one list.
+    fn tasks(&self) -> &'static [UploadTask] {
+        UploadTask::ALL
     }
+
+    /// The result file kinds the service takes.
+    fn file_kinds(&self) -> &'static [FileKind] {
+        FileKind::ALL
+    }
+
+    fn accept(&self) -> String {
+        FileKind::accept()
+    }
+}
+
+async fn submit_form(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+    let Some(user) = viewer.user.as_ref().filter(|_| viewer.session.is_some()) else {
+        return Ok(Redirect::to("/login?next=/submit").into_response());
+    };
     Ok(SubmitPage {
-        datasets: catalogue::datasets(&app).await?,
+        datasets: quota::every_dataset(&app, user).await?,
         max_upload_mb: app.config.max_upload_mb,
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()
@@ -458,6 +477,7 @@ async fn submit(
     let typed = SubmitPage {
         method: fields.method.clone(),
         dataset: fields.dataset.clone(),
+        protocol: fields.protocol.clone(),
         description: fields.description.clone(),
         paper_url: fields.paper_url.clone(),
         code_url: fields.code_url.clone(),
@@ -482,7 +502,7 @@ async fn submit(
         Err(e) if e.status().is_client_error() => {
             let status = e.status();
             let page = SubmitPage {
-                datasets: catalogue::datasets(&app).await?,
+                datasets: quota::every_dataset(&app, &owner).await?,
                 error: Some(e.body()),
                 ..typed
             };

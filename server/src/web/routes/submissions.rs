@@ -12,7 +12,9 @@ use sha2::{Digest, Sha256};
 use tokio::io::AsyncWriteExt;
 
 use crate::app::App;
-use crate::domain::{CocoProtocol, Description, Hardware, Link, MethodName, Visibility, optional};
+use crate::domain::{
+    CocoProtocol, Description, Hardware, Link, MethodName, UploadTask, Visibility, optional,
+};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Protocols, Upload, UploadedFile};
 use crate::store::methods::MethodMeta;
@@ -57,8 +59,8 @@ impl Fields {
                     for name in p.split(',').map(str::trim) {
                         let name = ProtocolName::from_str(name).map_err(|_| {
                             AppError::BadRequest(format!(
-                                "unknown protocol `{name}` (bop19, eccv18, bop19,eccv18, \
-                                 bop22-det or bop22-seg)"
+                                "unknown protocol `{name}` ({})",
+                                UploadTask::values()
                             ))
                         })?;
                         if !asked.contains(&name) {
@@ -139,16 +141,17 @@ pub async fn read_upload(
             "csrf" => &mut fields.csrf,
             _ => {
                 // Unknown fields are drained and ignored.
-                text(field).await?;
+                field_text(field).await?;
                 continue;
             }
         };
-        *slot = text(field).await?;
+        *slot = field_text(field).await?;
     }
     Ok((fields, files))
 }
 
-fn multipart_error(e: axum::extract::multipart::MultipartError) -> AppError {
+/// A malformed or oversized multipart body as the answer it gets.
+pub fn multipart_error(e: axum::extract::multipart::MultipartError) -> AppError {
     if e.status() == axum::http::StatusCode::PAYLOAD_TOO_LARGE {
         AppError::TooLarge { limit: 0 }
     } else {
@@ -156,7 +159,8 @@ fn multipart_error(e: axum::extract::multipart::MultipartError) -> AppError {
     }
 }
 
-async fn text(mut field: Field<'_>) -> AppResult<String> {
+/// A text field of a multipart body, at most `MAX_TEXT_FIELD` bytes of UTF-8.
+pub async fn field_text(mut field: Field<'_>) -> AppResult<String> {
     let mut bytes = Vec::new();
     while let Some(chunk) = field.chunk().await.map_err(multipart_error)? {
         bytes.extend_from_slice(&chunk);
