@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{BIN, Db, TestDb, cli_report, fixtures, reference_datasets, start};
+use crate::common::{
+    BIN, Db, TestDb, cli_report, fixtures, reference_datasets, start, upload, wait_done,
+};
 use fantoccini::{Client, ClientBuilder, Locator};
 use serde_json::{Value, json};
 
@@ -291,15 +293,200 @@ impl Drop for Worker {
     }
 }
 
+/// The dataset as wide as T-LESS: 30 objects (copies of the synthetic shapes), in one scene of
+/// small images so that it is quick to make and to score.
+const WIDE: &str = "synth30";
+
+/// Writes [`WIDE`] into `datasets`, and demo result files for it into `dir`: a 6D file and the
+/// 2D detector's and segmenter's, each with the task it is for.
+fn wide_dataset(datasets: &Path, dir: &Path) -> Vec<(PathBuf, &'static str)> {
+    let dataset = datasets.join(WIDE);
+    let run = |args: &[&str], paths: &[&Path]| {
+        let out = Command::new(BIN)
+            .args(args)
+            .args(paths)
+            .output()
+            .expect("poseboard runs");
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let synth = [
+        "dataset",
+        "synth",
+        "--objects",
+        "30",
+        "--scenes",
+        "1",
+        "--images-per-scene",
+        "16",
+        "--size",
+        "320x240",
+    ];
+    run(&synth, &[&dataset]);
+    let (poses, coco) = (dir.join("wide-6d"), dir.join("wide-2d"));
+    run(&["dataset", "demo-results"], &[&dataset, &poses]);
+    run(&["dataset", "demo-results", "--coco"], &[&dataset, &coco]);
+    let named = |folder: &Path, file: &str| folder.join(format!("{file}_{WIDE}-test"));
+    vec![
+        // One 6D file is enough for a board with a column per object.
+        (named(&poses, "demo-precise").with_extension("csv"), "bop19"),
+        (
+            named(&coco, "demo-detector").with_extension("json"),
+            "bop22-det",
+        ),
+        (
+            named(&coco, "demo-segmenter").with_extension("json"),
+            "bop22-seg",
+        ),
+    ]
+}
+
+/// Every board: each protocol over all core datasets and on each dataset, the wide one too.
+fn every_board(base: &str) -> Vec<String> {
+    let mut boards = Vec::new();
+    for protocol in ["bop19", "eccv18", "bop22-det", "bop22-seg"] {
+        boards.push(format!("{base}/leaderboards/{protocol}"));
+        for dataset in ["synthA", WIDE] {
+            boards.push(format!("{base}/leaderboards/{protocol}?dataset={dataset}"));
+        }
+    }
+    boards
+}
+
+/// Asserts that the page at `url` does not scroll sideways at the window's width.
+async fn fits_the_width(c: &Client, url: &str) {
+    let widths = script(
+        c,
+        "return [document.scrollingElement.scrollWidth, window.innerWidth]",
+    )
+    .await;
+    let (scroll, inner) = (widths[0].as_u64(), widths[1].as_u64());
+    assert!(
+        scroll <= inner,
+        "{url} scrolls sideways: {scroll:?} px wide at {inner:?} px"
+    );
+}
+
+/// On the board at `url` (one with rows), the score is the column right after the method, so
+/// that a phone shows the two together.
+async fn score_follows_method(c: &Client, url: &str) {
+    let next = script(
+        c,
+        "var m = document.querySelector('table.board thead th.sticky'); \
+         return m ? m.nextElementSibling.className : null;",
+    )
+    .await;
+    if let Some(class) = next.as_str() {
+        assert!(
+            class.split(' ').any(|k| k == "score"),
+            "{url}: the column after the method is `{class}`, not the score"
+        );
+    }
+}
+
+/// The wide board at the window's width: its 30 object columns scroll in the table's own box,
+/// and scrolled to the far right the method column is still in view at the box's left edge.
+async fn wide_board_scrolls_in_its_box(c: &Client, base: &str) {
+    let url = format!("{base}/leaderboards/bop19?dataset={WIDE}");
+    c.goto(&url).await.expect("the wide board");
+    let objects = script(
+        c,
+        "return document.querySelectorAll('table.board th.obj').length",
+    )
+    .await;
+    assert_eq!(objects.as_u64(), Some(30), "a column per object on {url}");
+    fits_the_width(c, &url).await;
+    let scrolled = script(
+        c,
+        "var t = document.querySelector('table.board'); \
+         var wide = t.scrollWidth > t.clientWidth; \
+         t.scrollLeft = t.scrollWidth; \
+         var cell = t.querySelector('tbody td.sticky').getBoundingClientRect(); \
+         var box = t.getBoundingClientRect(); \
+         return [wide, t.scrollLeft > 0, cell.left - box.left, cell.right <= box.right];",
+    )
+    .await;
+    assert_eq!(
+        scrolled[0],
+        json!(true),
+        "the table is wider than its box: {scrolled}"
+    );
+    assert_eq!(
+        scrolled[1],
+        json!(true),
+        "the table's box scrolls: {scrolled}"
+    );
+    let offset = scrolled[2].as_f64().expect("offset");
+    assert!(
+        offset.abs() < 1.0 && scrolled[3] == json!(true),
+        "scrolled right, the method column stays at the box's left edge: {scrolled}"
+    );
+}
+
+/// The charts of the page at `url`, at the window's width: axis labels at least 11 px as drawn,
+/// and within a chart no two curves drawn alike (each its own dash pattern).
+async fn charts_are_legible(c: &Client, url: &str) {
+    c.goto(url).await.expect("page");
+    let found = script(
+        c,
+        "var out = []; \
+         document.querySelectorAll('.charts svg').forEach(function (svg) { \
+           var scale = svg.getBoundingClientRect().width / svg.viewBox.baseVal.width; \
+           var sizes = []; \
+           svg.querySelectorAll('text.tick, text.axis').forEach(function (t) { \
+             sizes.push(parseFloat(getComputedStyle(t).fontSize) * scale); }); \
+           var dashes = []; \
+           svg.querySelectorAll('polyline.line').forEach(function (l) { \
+             dashes.push(getComputedStyle(l).strokeDasharray); }); \
+           out.push([Math.min.apply(null, sizes), dashes]); }); \
+         return out;",
+    )
+    .await;
+    let charts = found.as_array().expect("charts");
+    assert!(!charts.is_empty(), "charts on {url}");
+    for chart in charts {
+        let smallest = chart[0].as_f64().expect("a size");
+        assert!(smallest >= 11.0, "axis labels of {smallest:.1} px on {url}");
+        let dashes: Vec<&str> = chart[1]
+            .as_array()
+            .expect("dashes")
+            .iter()
+            .map(|d| d.as_str().expect("dash"))
+            .collect();
+        let distinct: std::collections::BTreeSet<&&str> = dashes.iter().collect();
+        assert_eq!(
+            distinct.len(),
+            dashes.len(),
+            "curves drawn alike on {url}: {dashes:?}"
+        );
+    }
+}
+
 #[test]
 fn pages_work_in_a_real_browser() {
     let driver = start_driver();
     let dir = tempfile::tempdir().expect("tmp");
     let datasets = reference_datasets(dir.path());
+    let wide_files = wide_dataset(&datasets, dir.path());
     let data = dir.path().join("data");
     let db = TestDb::new(Db::Sqlite, "browser");
     // No worker in the server: the test starts one once it has seen its upload wait in the queue.
     let server = start(&data, &datasets, &db, &["--no-demo", "--workers", "0"]);
+    // Public scored submissions on the wide dataset, 6D and 2D (queued now, scored by that
+    // worker), so that its boards have their widest tables: a column per object, the 2D stats.
+    let wide_ids: Vec<i64> = wide_files
+        .iter()
+        .map(|(file, task)| {
+            let r = upload(&server, &format!("wide-{task}"), WIDE, file, Some(task));
+            assert!(r.status().is_success(), "{task}: {}", r.status());
+            r.json::<Value>().expect("JSON")["id"]
+                .as_i64()
+                .expect("the wide submission's id")
+        })
+        .collect();
     let public_file = fixtures().join("results/noisemedium_synthA-test.csv");
     let private_file = fixtures().join("results/noisesmall_synthA-test.csv");
     let expected = cli_report(&fixtures().join("dataset"), &public_file, "bop19");
@@ -516,6 +703,30 @@ fn pages_work_in_a_real_browser() {
                     );
                 }
             }
+        }
+
+        // Every board, the wide one too, fits the page at both widths; a wide table scrolls in
+        // its own box with the method column in view.
+        let base_owned = base.to_string();
+        tokio::task::spawn_blocking(move || {
+            for id in wide_ids {
+                wait_done(&base_owned, id, Duration::from_secs(60));
+            }
+        })
+        .await
+        .expect("the wide submissions are scored");
+        for width in [DESKTOP, PHONE] {
+            page_width(&c, width).await;
+            for url in every_board(base) {
+                c.goto(&url).await.expect("board");
+                fits_the_width(&c, &url).await;
+                score_follows_method(&c, &url).await;
+            }
+            wide_board_scrolls_in_its_box(&c, base).await;
+            let png = c.screenshot().await.expect("screenshot");
+            let kind = if width == PHONE { "phone" } else { "desktop" };
+            std::fs::write(shots.join(format!("wide-board-{kind}.png")), png).expect("png");
+            charts_are_legible(&c, &submission_url).await;
         }
 
         // On a phone the menu folds away behind its button, and the board's method column
