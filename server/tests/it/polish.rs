@@ -1,7 +1,8 @@
 //! The smaller things a researcher trips over in the first hour (issue 27, item 14), seen over
 //! real HTTP: the menu lists the 2D boards; a finished submission's page shows its scores before
 //! the file's hash and no progress bar, and its delete button looks destructive; a target's
-//! overlay caption names the colours of the ground truth and the estimates; the visibility
+//! overlay caption names the colours of the ground truth and the estimates, and its page says
+//! why an instance is not counted; the visibility
 //! endpoint takes the multipart form the upload takes as well as a plain form and JSON.
 //!
 //! The pages do not depend on the database kind, so this runs on SQLite only.
@@ -129,6 +130,22 @@ fn the_first_hour_has_no_rough_edges() {
         caption.contains("the ground truth in green")
             && caption.contains("the estimates in magenta"),
         "{caption}"
+    );
+
+    // A target's page says why an instance of its object is not counted: in scene 2, image 1,
+    // object 2's second instance (gt 4) is 9.1 % visible, and the targets file counts one.
+    let page = b
+        .get(format!("{base}/submissions/{id}/targets/2/1/2"))
+        .send()
+        .expect("target")
+        .text()
+        .expect("page");
+    assert!(
+        page.contains(
+            "Instance 4 is not counted: 9.1 % visible: the targets file counts 1 instance of \
+             the object in this image"
+        ),
+        "{page}"
     );
 
     // Withdraw with the upload's multipart form, publish with a plain form, withdraw with JSON.

@@ -156,7 +156,7 @@ fn paths() -> Value {
                     { "name": "error", "in": "query", "schema": { "type": "string" } },
                     { "name": "tau", "in": "query", "schema": { "type": "number" } },
                     { "name": "threshold", "in": "query", "schema": { "type": "number" } }],
-                "responses": { "200": { "description": "{submission, scene_id, im_id, obj_id, protocol, columns: [{signature, label}], estimates: [{est_id, score, against: [{gt_id, errors}]}], verdicts: [{criterion, outcomes}], image_url}" },
+                "responses": { "200": { "description": "{submission, scene_id, im_id, obj_id, protocol, columns: [{signature, label}], estimates: [{est_id, score, against: [{gt_id, errors}]}], verdicts: [{criterion, outcomes, not_counted: [{gt_id, visib_fract, reason}] (the instances of the object in the image the recall leaves out, and why)}], image_url}" },
                     "400": { "description": "not finished, or an unknown criterion" }, "404": { "description": "no such submission or target, or another account's private submission" } } } },
             "/api/v1/me/submissions": { "get": { "summary": "Your submissions, private ones included, newest first, with status, publication state, headline scores, download and action links",
                 "security": [{ "bearer": [] }], "responses": { "200": { "description": "{submissions: [...]}" }, "401": { "description": "no valid API token or session" } } } },

@@ -506,11 +506,72 @@ pub struct EstimateRow {
     pub against: Vec<Against>,
 }
 
-/// The verdicts on the target's counted instances at one criterion.
+/// The verdicts on the target's counted instances at one criterion, and the instances of its
+/// object in the image that the recall leaves out, each with why.
 #[derive(Clone, Debug, Serialize)]
 pub struct Verdicts {
     pub criterion: Criterion,
     pub outcomes: Vec<TargetOutcome>,
+    pub not_counted: Vec<NotCounted>,
+}
+
+/// An instance of the target's object in its image that the recall does not count.
+#[derive(Clone, Debug, Serialize)]
+pub struct NotCounted {
+    pub gt_id: u32,
+    pub visib_fract: f64,
+    /// Why, in the protocol's terms ("under 10 % visible ...").
+    pub reason: String,
+}
+
+/// The instances of object `obj_id` in `image` that are not among `counted` (gt ids), each with
+/// why the protocol leaves it out: `valid_gts`' rule (under `visib_gt_min`, or beyond the
+/// instance count the targets file gives, most visible first) or else n_top (the recall counts
+/// at most that many of the valid instances, matched and more visible first).
+fn not_counted(
+    image: &evaluator::dataset::Image,
+    image_targets: &[(u32, u32)],
+    protocol: &Protocol,
+    obj_id: u32,
+    counted: &[u32],
+) -> Vec<NotCounted> {
+    let valid = evaluator::matching::valid_gts(image, image_targets, protocol.visib_gt_min);
+    let listed = image_targets
+        .iter()
+        .find(|t| t.0 == obj_id)
+        .map_or(0, |t| t.1);
+    image
+        .gt
+        .iter()
+        .enumerate()
+        .filter(|(gt, g)| g.obj_id == obj_id && !counted.contains(&(*gt as u32)))
+        .map(|(gt, g)| {
+            let visible = format!("{:.1} % visible", g.visib_fract * 100.0);
+            let reason = if valid[gt] {
+                format!(
+                    "{visible}, but the protocol's n_top ({}) counts fewer instances of the \
+                     object per image: the matched and the more visible ones first",
+                    protocol.n_top.as_i64()
+                )
+            } else if protocol.visib_gt_min >= 0.0 {
+                format!(
+                    "{visible}: under the protocol's minimum visibility (visib_gt_min) of {} %",
+                    protocol.visib_gt_min * 100.0
+                )
+            } else {
+                format!(
+                    "{visible}: the targets file counts {} of the object in this image, the \
+                     most visible first (BOP lists the instances at least 10 % visible)",
+                    crate::wording::count(listed, "instance", "instances")
+                )
+            };
+            NotCounted {
+                gt_id: gt as u32,
+                visib_fract: g.visib_fract,
+                reason,
+            }
+        })
+        .collect()
 }
 
 /// One target of a submission: its estimates with their errors, and which counted as correct.
@@ -574,16 +635,33 @@ pub async fn target(
     let (estimates, verdicts) = app
         .on_pool("matching stored errors", move || {
             let all = job.estimates(&p)?;
+            let image = dataset
+                .scenes
+                .get(&scene_id)
+                .and_then(|sc| sc.images.get(&im_id));
+            // The image's targets, once each, in the targets file's order (as `outcomes`).
+            let mut image_targets: Vec<(u32, u32)> = Vec::new();
+            for t in &dataset.targets {
+                if (t.scene_id, t.im_id) == (scene_id, im_id)
+                    && !image_targets.iter().any(|x| x.0 == t.obj_id)
+                {
+                    image_targets.push((t.obj_id, t.inst_count));
+                }
+            }
             let verdicts = criteria
                 .into_iter()
                 .map(|criterion| {
-                    let outcomes = outcomes(&dataset, &p, &all, &criterion)
+                    let outcomes: Vec<TargetOutcome> = outcomes(&dataset, &p, &all, &criterion)
                         .into_iter()
                         .filter(|o| (o.scene_id, o.im_id, o.obj_id) == (scene_id, im_id, obj_id))
                         .collect();
+                    let counted: Vec<u32> = outcomes.iter().map(|o| o.gt_id).collect();
                     Verdicts {
                         criterion,
                         outcomes,
+                        not_counted: image.map_or_else(Vec::new, |image| {
+                            not_counted(image, &image_targets, &p, obj_id, &counted)
+                        }),
                     }
                 })
                 .collect();
