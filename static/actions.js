@@ -1,7 +1,11 @@
 // Small behaviours of every page, without inline scripts (the content security policy forbids
-// them): forms marked data-confirm ask before they submit, buttons marked data-copy copy the
-// text of the element they name.
+// them): the menu follows sign-in, forms marked data-confirm ask before they submit, buttons
+// marked data-copy copy the text of the element they name.
 (function () {
+  // The pb_signed_in cookie (no secret: it only says a session cookie was set with it) picks
+  // the menu's links, on pages that are the same for every reader.
+  const signedIn = document.cookie.split("; ").indexOf("pb_signed_in=1") >= 0;
+  document.documentElement.classList.add(signedIn ? "signed-in" : "signed-out");
   document.addEventListener("submit", function (e) {
     const message = e.target.dataset && e.target.dataset.confirm;
     if (message && !window.confirm(message)) e.preventDefault();

@@ -16,6 +16,12 @@ use crate::store::accounts::{Session, User};
 
 pub const SESSION_COOKIE: &str = "pb_session";
 
+/// A cookie that only says "signed in" (no secret, readable by the pages' script), so that the
+/// menu of pages served the same to every reader (the cached boards) can offer a signed-in
+/// browser its submissions and account, and anyone else Sign in and Register. It comes and goes
+/// with the session cookie; it grants nothing.
+pub const SIGNED_IN_COOKIE: &str = "pb_signed_in";
+
 /// Whether a form post comes from our own pages. Browsers send `Origin` with every form post;
 /// a post whose origin names another host is cross-site (login CSRF and the like). Requests
 /// without `Origin` come from scripts, which cannot ride on a victim's cookies.
@@ -134,14 +140,27 @@ impl FromRequestParts<AppState> for Viewer {
 /// (directly or through a proxy that says so). It lives as long as the browser session; the
 /// server forgets it after [`accounts::SESSION_TTL_MS`] in any case.
 pub fn session_cookie(secret: String, headers: &HeaderMap) -> Cookie<'static> {
-    let tls = headers
-        .get("x-forwarded-proto")
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.eq_ignore_ascii_case("https"));
     Cookie::build((SESSION_COOKIE, secret))
         .path("/")
         .http_only(true)
         .same_site(SameSite::Lax)
-        .secure(tls)
+        .secure(over_tls(headers))
         .build()
+}
+
+/// The [`SIGNED_IN_COOKIE`] set beside a new session cookie, with the same lifetime.
+pub fn signed_in_cookie(headers: &HeaderMap) -> Cookie<'static> {
+    Cookie::build((SIGNED_IN_COOKIE, "1"))
+        .path("/")
+        .same_site(SameSite::Lax)
+        .secure(over_tls(headers))
+        .build()
+}
+
+/// Whether the request came over TLS (directly or through a proxy that says so).
+fn over_tls(headers: &HeaderMap) -> bool {
+    headers
+        .get("x-forwarded-proto")
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.eq_ignore_ascii_case("https"))
 }

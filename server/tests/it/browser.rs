@@ -293,6 +293,26 @@ impl Drop for Worker {
     }
 }
 
+/// The menu of the current page (at desktop width, where it is not folded) offers a signed-in
+/// browser its submissions and account, and anyone else Sign in and Register.
+async fn menu_follows_sign_in(c: &Client, signed_in: bool) {
+    for (href, for_signed_in) in [
+        ("/me/submissions", true),
+        ("/account", true),
+        ("/login", false),
+        ("/register", false),
+    ] {
+        let link = css(c, &format!("header nav a[href=\"{href}\"]")).await;
+        let shown = link.is_displayed().await.expect("shown?");
+        assert_eq!(
+            shown,
+            for_signed_in == signed_in,
+            "the menu's {href} link, signed {}",
+            if signed_in { "in" } else { "out" }
+        );
+    }
+}
+
 /// The dataset as wide as T-LESS: 30 objects (copies of the synthetic shapes), in one scene of
 /// small images so that it is quick to make and to score.
 const WIDE: &str = "synth30";
@@ -535,6 +555,7 @@ fn pages_work_in_a_real_browser() {
             "alice",
             "the account page after signing in"
         );
+        menu_follows_sign_in(&c, true).await;
 
         // A token: shown once in its box, with a copy button and a curl example for this server.
         fill(
@@ -637,6 +658,7 @@ fn pages_work_in_a_real_browser() {
         submit(&c, "form[action=\"/logout\"]").await;
         for url in [board.clone(), format!("{base}/")] {
             c.goto(&url).await.expect("board");
+            menu_follows_sign_in(&c, false).await;
             let page = c.source().await.expect("html");
             assert!(page.contains("browser-net"), "{url}: the public entry");
             assert!(

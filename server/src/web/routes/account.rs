@@ -108,7 +108,9 @@ async fn login(
 
 /// The browser is signed in with the session `secret`: its cookie, and on to `next`.
 fn signed_in(secret: String, headers: &HeaderMap, jar: CookieJar, next: &str) -> Response {
-    let jar = jar.add(auth::session_cookie(secret, headers));
+    let jar = jar
+        .add(auth::session_cookie(secret, headers))
+        .add(auth::signed_in_cookie(headers));
     (jar, Redirect::to(next)).into_response()
 }
 
@@ -166,7 +168,9 @@ async fn logout(
     if let Some(cookie) = jar.get(SESSION_COOKIE) {
         accounts::close_session(&app, cookie.value()).await?;
     }
-    let jar = jar.remove(Cookie::build(SESSION_COOKIE).path("/"));
+    let jar = jar
+        .remove(Cookie::build(SESSION_COOKIE).path("/"))
+        .remove(Cookie::build(auth::SIGNED_IN_COOKIE).path("/"));
     Ok((jar, Redirect::to("/")).into_response())
 }
 
