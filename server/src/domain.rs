@@ -398,8 +398,8 @@ impl FileKind {
         FileKind {
             extension: ".zip",
             media_type: "application/zip",
-            purpose: "several of the files above at once, e.g. the seven core datasets: one \
-                      submission per file",
+            purpose: "several .csv files at once, e.g. for the seven core datasets: one \
+                      submission per file (an archive holds .csv files only)",
         },
     ];
 
