@@ -158,6 +158,21 @@ fn the_form_offers_what_the_service_accepts(kind: Db) {
         dataset_option(&page, "synthA")
     );
     assert_eq!(quota(&b, base)["left"], 2);
+    // The quota is the caller's, on a served dataset the request names.
+    let anonymous = crate::common::client()
+        .get(format!("{base}/api/v1/me/quota?dataset=synthA"))
+        .send()
+        .expect("answered");
+    assert_eq!(anonymous.status(), 401);
+    for (query, says) in [("", "`dataset`"), ("?dataset=tless", "synthA")] {
+        let r = b
+            .get(format!("{base}/api/v1/me/quota{query}"))
+            .send()
+            .expect("answered");
+        assert_eq!(r.status(), 400, "{query}");
+        let error = r.json::<Value>().expect("JSON")["error"].to_string();
+        assert!(error.contains(says), "{query}: {error}");
+    }
     let sent = form_upload(&b, base, "noisesmall_synthA-test.csv");
     assert!(sent.status().is_success(), "{}", sent.status());
     let q = quota(&b, base);
