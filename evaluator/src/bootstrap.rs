@@ -104,8 +104,26 @@ impl Bootstrap {
 /// `replicates` bootstrap replicates of the headline score; `None` when there is no target
 /// image or no headline.
 pub fn bootstrap(counts: &ImageCounts, seed: u64, replicates: usize) -> Option<Bootstrap> {
-    let n = counts.images();
-    if n == 0 || counts.groups.is_empty() {
+    if counts.groups.is_empty() {
+        return None;
+    }
+    resample(counts.images(), seed, replicates, |w| {
+        counts.weighted_score(w)
+    })
+}
+
+/// `replicates` bootstrap replicates of a score over `images` target images, `score` giving
+/// it with image `i` counted `weights[i]` times: the one resampling every score shares (the
+/// 6D headlines here, the 2D tasks' AP in the `coco` module), so that replicate `b` of any
+/// score on a dataset draws the same images. `None` when there is no image or no score.
+pub fn resample(
+    images: usize,
+    seed: u64,
+    replicates: usize,
+    score: impl Fn(&[u32]) -> Option<f64> + Sync,
+) -> Option<Bootstrap> {
+    let n = images;
+    if n == 0 {
         return None;
     }
     let scores = (0..replicates)
@@ -116,7 +134,7 @@ pub fn bootstrap(counts: &ImageCounts, seed: u64, replicates: usize) -> Option<B
             for _ in 0..n {
                 weights[rng.below(n)] += 1;
             }
-            counts.weighted_score(&weights)
+            score(&weights)
         })
         .collect::<Option<Vec<f64>>>()?;
     Some(Bootstrap {

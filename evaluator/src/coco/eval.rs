@@ -32,10 +32,11 @@ use crate::stats::mean;
 const EPS: f64 = f64::EPSILON;
 
 /// The largest of COCO's max-detections (per image and category).
-const MAX_DETS: [usize; 3] = [1, 10, 100];
+pub const MAX_DETS: [usize; 3] = [1, 10, 100];
 
 /// COCO's area ranges: all, small (< 32²), medium (< 96²), large; bounds inclusive.
-const AREA_RANGES: [[f64; 2]; 4] = [[0.0, 1e10], [0.0, 1024.0], [1024.0, 9216.0], [9216.0, 1e10]];
+pub const AREA_RANGES: [[f64; 2]; 4] =
+    [[0.0, 1e10], [0.0, 1024.0], [1024.0, 9216.0], [9216.0, 1e10]];
 
 /// What is compared: boxes or masks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -206,8 +207,13 @@ struct ImageEval {
 }
 
 /// Runs COCOeval (`evaluate`, then `accumulate`) on the ground truth and the detections, the
-/// detections in the toolkit's merged order (file order within an image).
-pub fn evaluate(gt: &CocoGt, detections: &[Detection<'_>], iou_type: IouType) -> Accumulated {
+/// detections in the toolkit's merged order (file order within an image). Also returns the
+/// per-image evaluations the headline AP is accumulated from, for its bootstrap.
+pub fn evaluate(
+    gt: &CocoGt,
+    detections: &[Detection<'_>],
+    iou_type: IouType,
+) -> (Accumulated, ImageEvals) {
     let iou_thrs = iou_thresholds();
     let rec_thrs = recall_thresholds();
     let categories = gt.categories.clone();
@@ -280,18 +286,202 @@ pub fn evaluate(gt: &CocoGt, detections: &[Detection<'_>], iou_type: IouType) ->
             }
         }
     }
-    Accumulated {
-        iou_thresholds: iou_thrs,
-        recall_thresholds: rec_thrs,
-        categories,
-        precision,
-        recall,
+    let mut per_category: Vec<Vec<(usize, ImageEval)>> = (0..n_cats).map(|_| Vec::new()).collect();
+    for (cell, [all, ..]) in cells.into_iter().enumerate() {
+        if let Some(ev) = all {
+            per_category[cell % n_cats].push((cell / n_cats, ev));
+        }
+    }
+    let images = ImageEvals {
+        images: n_images,
+        iou_thresholds: tn,
+        recall_thresholds: rec_thrs.clone(),
+        categories: per_category
+            .into_iter()
+            .zip(&categories)
+            .map(|(evals, &id)| CategoryEvals::new(id, evals))
+            .collect(),
+    };
+    (
+        Accumulated {
+            iou_thresholds: iou_thrs,
+            recall_thresholds: rec_thrs,
+            categories,
+            precision,
+            recall,
+        },
+        images,
+    )
+}
+
+/// What the headline AP (area "all", 100 detections) is accumulated from, per target image:
+/// each image's evaluation per category, so that the AP can be computed again with the images
+/// counted any number of times (the bootstrap of [`crate::coco::CocoEvaluation::bootstrap`]).
+pub struct ImageEvals {
+    images: usize,
+    iou_thresholds: usize,
+    recall_thresholds: Vec<f64>,
+    categories: Vec<CategoryEvals>,
+}
+
+/// One category's image evaluations (in image order) and their detections in accumulation
+/// order, as runs of one image's detections with one score.
+struct CategoryEvals {
+    category_id: i64,
+    evals: Vec<(usize, ImageEval)>,
+    /// `(index into evals, first detection, end)`.
+    runs: Vec<(usize, usize, usize)>,
+}
+
+impl CategoryEvals {
+    fn new(category_id: i64, evals: Vec<(usize, ImageEval)>) -> CategoryEvals {
+        let refs: Vec<&ImageEval> = evals.iter().map(|(_, ev)| ev).collect();
+        let mut runs: Vec<(usize, usize, usize)> = Vec::new();
+        for (e, d) in sorted_detections(&refs, MAX_DETS[2]) {
+            match runs.last_mut() {
+                Some(run)
+                    if run.0 == e && run.2 == d && refs[e].scores[d - 1] == refs[e].scores[d] =>
+                {
+                    run.2 = d + 1;
+                }
+                _ => runs.push((e, d, d + 1)),
+            }
+        }
+        CategoryEvals {
+            category_id,
+            evals,
+            runs,
+        }
+    }
+}
+
+/// What COCOeval counts in one image and category at IoU 0.5 (area "all", the 100 best
+/// detections): the counts behind AP50, for reading two methods side by side image by image.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ImageOutcome {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub category_id: i64,
+    /// Ground-truth instances that are not ignored (e.g. under 10 % visible).
+    pub instances: usize,
+    /// Detections matched to one of them: the true positives.
+    pub matched: usize,
+    /// Detections matched to none (and not to an ignored instance either).
+    pub false_positives: usize,
+}
+
+impl ImageOutcome {
+    /// Instances no detection was matched to.
+    pub fn missed(&self) -> usize {
+        self.instances - self.matched
+    }
+}
+
+impl ImageEvals {
+    /// The target images.
+    pub fn images(&self) -> usize {
+        self.images
+    }
+
+    /// Per image (in the merged order) and category with ground truth or detections, what
+    /// COCOeval counts at IoU 0.5; `gt` is the ground truth these were evaluated on.
+    pub fn outcomes_at_50(&self, gt: &CocoGt) -> Vec<ImageOutcome> {
+        let mut out: Vec<ImageOutcome> = self
+            .categories
+            .iter()
+            .flat_map(|c| {
+                c.evals.iter().map(|(i, ev)| {
+                    let n = ev.scores.len();
+                    // IoU 0.5 is the first threshold.
+                    let counted = (0..n).filter(|&d| !ev.ignored[d]);
+                    let matched = counted.clone().filter(|&d| ev.matches[d] != 0).count();
+                    ImageOutcome {
+                        scene_id: gt.images[*i].scene_id,
+                        im_id: gt.images[*i].im_id,
+                        category_id: c.category_id,
+                        instances: ev.regular_instances(),
+                        matched,
+                        false_positives: counted.count() - matched,
+                    }
+                })
+            })
+            .collect();
+        let position: std::collections::HashMap<(u32, u32), usize> = gt
+            .images
+            .iter()
+            .enumerate()
+            .map(|(i, im)| ((im.scene_id, im.im_id), i))
+            .collect();
+        out.sort_by_key(|o| (position[&(o.scene_id, o.im_id)], o.category_id));
+        out
+    }
+
+    /// The AP with target image `i` counted `weights[i]` times, as COCOeval computes it on the
+    /// ground truth and detections with each image repeated that often (the copies of an image
+    /// next to each other in the image order): a stable sort by score puts tied detections of
+    /// one image together, so each such run is repeated as a whole. With every weight 1, the
+    /// report's AP to the last bit. -1 when no category has a regular instance.
+    pub fn weighted_ap(&self, weights: &[u32]) -> f64 {
+        let (tn, rn, kn) = (
+            self.iou_thresholds,
+            self.recall_thresholds.len(),
+            self.categories.len(),
+        );
+        // [T][R][K], the order `summarize` takes them in.
+        let mut precision = vec![-1.0; tn * rn * kn];
+        let (mut rc, mut pr) = (Vec::new(), Vec::new());
+        for (k, c) in self.categories.iter().enumerate() {
+            let npig: usize = c
+                .evals
+                .iter()
+                .map(|(i, ev)| weights[*i] as usize * ev.regular_instances())
+                .sum();
+            if npig == 0 {
+                continue;
+            }
+            let mut order: Vec<(&ImageEval, usize)> = Vec::new();
+            for &(e, d0, d1) in &c.runs {
+                let (image, ev) = &c.evals[e];
+                for _ in 0..weights[*image] {
+                    order.extend((d0..d1).map(|d| (ev, d)));
+                }
+            }
+            for t in 0..tn {
+                precision_at_threshold(
+                    &order,
+                    t,
+                    npig as f64,
+                    &self.recall_thresholds,
+                    (&mut rc, &mut pr),
+                    |r, v| precision[(t * rn + r) * kn + k] = v,
+                );
+            }
+        }
+        precision.retain(|&v| v > -1.0);
+        if precision.is_empty() {
+            -1.0
+        } else {
+            mean(&precision)
+        }
     }
 }
 
 /// Stable sort of indices by descending score (numpy's `argsort(-scores, kind='mergesort')`).
 fn by_score(indices: &mut [usize], score: impl Fn(usize) -> f64) {
     indices.sort_by(|&a, &b| score(b).total_cmp(&score(a)));
+}
+
+/// The (image, detection) pairs of `evals`, at most `max_det` per image, concatenated in image
+/// order and sorted stably by score: the order `accumulate` takes detections in.
+fn sorted_detections(evals: &[&ImageEval], max_det: usize) -> Vec<(usize, usize)> {
+    let dets: Vec<(usize, usize)> = evals
+        .iter()
+        .enumerate()
+        .flat_map(|(e, ev)| (0..ev.scores.len().min(max_det)).map(move |d| (e, d)))
+        .collect();
+    let mut order: Vec<usize> = (0..dets.len()).collect();
+    by_score(&mut order, |i| evals[dets[i].0].scores[dets[i].1]);
+    order.into_iter().map(|i| dets[i]).collect()
 }
 
 /// `computeIoU` and `evaluateImg` of one image and category, for the four area ranges.
@@ -389,6 +579,13 @@ fn evaluate_cell(
     })
 }
 
+impl ImageEval {
+    /// Its ground truth that is not ignored.
+    fn regular_instances(&self) -> usize {
+        self.gt_ignored.iter().filter(|&&i| !i).count()
+    }
+}
+
 /// `accumulate` for one category, area range and max-detections: sets the precision at each
 /// (threshold, recall point) through `set` and returns the recall per threshold (`None` when
 /// the category has no regular ground truth: it stays -1).
@@ -399,63 +596,70 @@ fn accumulate(
     rec_thrs: &[f64],
     mut set: impl FnMut(usize, usize, f64),
 ) -> Vec<Option<f64>> {
-    if evals.is_empty() {
-        return vec![None; tn];
-    }
-    let npig = evals
-        .iter()
-        .map(|e| e.gt_ignored.iter().filter(|&&i| !i).count())
-        .sum::<usize>();
+    let npig = evals.iter().map(|e| e.regular_instances()).sum::<usize>();
     if npig == 0 {
         return vec![None; tn];
     }
-    // (image, detection) of every kept detection, concatenated in image order.
-    let mut dets: Vec<(usize, usize)> = Vec::new();
-    let mut scores: Vec<f64> = Vec::new();
-    for (e, ev) in evals.iter().enumerate() {
-        for d in 0..ev.scores.len().min(max_det) {
-            dets.push((e, d));
-            scores.push(ev.scores[d]);
-        }
-    }
-    let mut order: Vec<usize> = (0..dets.len()).collect();
-    by_score(&mut order, |i| scores[i]);
+    let order: Vec<(&ImageEval, usize)> = sorted_detections(evals, max_det)
+        .into_iter()
+        .map(|(e, d)| (evals[e], d))
+        .collect();
+    let (mut rc, mut pr) = (Vec::new(), Vec::new());
+    (0..tn)
+        .map(|t| {
+            Some(precision_at_threshold(
+                &order,
+                t,
+                npig as f64,
+                rec_thrs,
+                (&mut rc, &mut pr),
+                |r, v| set(t, r, v),
+            ))
+        })
+        .collect()
+}
+
+/// One IoU threshold `t` of `accumulate`, the detections taken in `order`: sets the precision
+/// at each recall point through `set` and returns the recall reached. `scratch` holds the
+/// recall and precision after each detection.
+fn precision_at_threshold(
+    order: &[(&ImageEval, usize)],
+    t: usize,
+    npig: f64,
+    rec_thrs: &[f64],
+    (rc, pr): (&mut Vec<f64>, &mut Vec<f64>),
+    mut set: impl FnMut(usize, f64),
+) -> f64 {
     let nd = order.len();
-    let npig = npig as f64;
-    let mut out = Vec::with_capacity(tn);
-    let mut rc = vec![0.0; nd];
-    let mut pr = vec![0.0; nd];
-    for t in 0..tn {
-        let (mut tp, mut fp) = (0u64, 0u64);
-        for (j, &i) in order.iter().enumerate() {
-            let (e, d) = dets[i];
-            let ev = evals[e];
-            let n = ev.scores.len();
-            if !ev.ignored[t * n + d] {
-                if ev.matches[t * n + d] != 0 {
-                    tp += 1;
-                } else {
-                    fp += 1;
-                }
-            }
-            let (tpf, fpf) = (tp as f64, fp as f64);
-            rc[j] = tpf / npig;
-            pr[j] = tpf / (fpf + tpf + EPS);
-        }
-        out.push(Some(if nd > 0 { rc[nd - 1] } else { 0.0 }));
-        for i in (1..nd).rev() {
-            if pr[i] > pr[i - 1] {
-                pr[i - 1] = pr[i];
+    rc.clear();
+    pr.clear();
+    let (mut tp, mut fp) = (0u64, 0u64);
+    for &(ev, d) in order {
+        let n = ev.scores.len();
+        if !ev.ignored[t * n + d] {
+            if ev.matches[t * n + d] != 0 {
+                tp += 1;
+            } else {
+                fp += 1;
             }
         }
-        for (r, &thr) in rec_thrs.iter().enumerate() {
-            let pi = rc.partition_point(|&v| v < thr);
-            // COCOeval stops at the first recall point beyond the last detection; the rest
-            // keep 0.
-            set(t, r, if pi < nd { pr[pi] } else { 0.0 });
+        let (tpf, fpf) = (tp as f64, fp as f64);
+        rc.push(tpf / npig);
+        pr.push(tpf / (fpf + tpf + EPS));
+    }
+    let recall = if nd > 0 { rc[nd - 1] } else { 0.0 };
+    for i in (1..nd).rev() {
+        if pr[i] > pr[i - 1] {
+            pr[i - 1] = pr[i];
         }
     }
-    out
+    for (r, &thr) in rec_thrs.iter().enumerate() {
+        let pi = rc.partition_point(|&v| v < thr);
+        // COCOeval stops at the first recall point beyond the last detection; the rest
+        // keep 0.
+        set(r, if pi < nd { pr[pi] } else { 0.0 });
+    }
+    recall
 }
 
 #[cfg(test)]

@@ -343,3 +343,40 @@ struct RawAnnotation {
     ignore: Option<Value>,
     iscrowd: Option<Value>,
 }
+
+#[cfg(test)]
+impl CocoGt {
+    /// This ground truth with image `i` repeated `weights[i]` times (copies next to each other,
+    /// fresh merged ids), and per original image the indices of its copies: what a bootstrap
+    /// replicate stands for, to check the weighted AP against COCOeval run on it.
+    pub(crate) fn repeated(&self, weights: &[u32]) -> (CocoGt, Vec<Vec<usize>>) {
+        let mut images = Vec::new();
+        let mut copies = vec![Vec::new(); self.images.len()];
+        for (i, image) in self.images.iter().enumerate() {
+            for _ in 0..weights[i] {
+                copies[i].push(images.len());
+                images.push(GtImage {
+                    merged_id: images.len() as i64 + 1,
+                    ..image.clone()
+                });
+            }
+        }
+        let mut annotations = Vec::new();
+        for a in &self.annotations {
+            for &image in &copies[a.image] {
+                annotations.push(GtAnnotation {
+                    image,
+                    merged_id: annotations.len() as i64 + 1,
+                    ..a.clone()
+                });
+            }
+        }
+        let gt = CocoGt {
+            images,
+            annotations,
+            index: HashMap::new(),
+            ..self.clone()
+        };
+        (gt, copies)
+    }
+}
