@@ -241,7 +241,7 @@ impl fmt::Debug for Password {
 macro_rules! word_enum {
     ($(#[$doc:meta])* $name:ident, $field:literal { $($variant:ident = $word:literal),+ $(,)? }) => {
         $(#[$doc])*
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
         pub enum $name {
             $(#[serde(rename = $word)] $variant),+
         }
@@ -415,7 +415,7 @@ impl FileKind {
 
 /// What a leaderboard ranks: a 6D protocol's scores or a 2D task's AP. Written as its name
 /// (`bop19`, `eccv18`, `bop22-det`, `bop22-seg`) in URLs and JSON.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(untagged)]
 pub enum BoardProtocol {
     Pose(evaluator::protocol::ProtocolName),

@@ -201,7 +201,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     let replicates = if needed.is_empty() {
         BTreeMap::new()
     } else {
-        app.store.replicates(&needed).await?
+        app.store.replicates(&needed, protocol.is_coco()).await?
     };
     ranking::intervals(&mut rows, &columns, &replicates);
     ranking::rank(&mut rows);
@@ -256,9 +256,9 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     };
     ranking::sort(&mut rows, &query.sort);
     Ok(Ranked {
-        stat_names: match &coco[..] {
-            [] => Vec::new(),
-            [first, ..] => first.report.stats().iter().map(|(k, _)| *k).collect(),
+        stat_names: match protocol {
+            BoardProtocol::Pose(_) => Vec::new(),
+            BoardProtocol::Coco(_) => evaluator::coco::STAT_NAMES.to_vec(),
         },
         datasets,
         core,
@@ -323,9 +323,9 @@ fn coco_entry(e: &CocoBoardEntry) -> Entry {
             ar_mspd: None,
             time: e.time_avg,
             pinned: e.pinned,
-            record: None,
-            ci95: None,
-            score_id: None,
+            record: Some(e.record.clone()),
+            ci95: e.ci95,
+            score_id: Some(e.score_id),
             stats: e.report.stats().into_iter().collect(),
             red_flags: Vec::new(),
         },

@@ -18,21 +18,28 @@ use crate::store::scores::ScoreRecord;
 pub struct Cell {
     pub submission_id: SubmissionId,
     pub score: f64,
+    /// The breakdowns a protocol has (eccv18: the recall; bop19: the three ARs); the others
+    /// are left out of the JSON rather than written as null.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub recall: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub ar_vsd: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub ar_mssd: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub ar_mspd: Option<f64>,
     pub time: Option<f64>,
     /// The method's owner pinned this submission as its entry (otherwise it is the best).
     pub pinned: bool,
-    /// How the score can be reproduced (6D boards).
+    /// How the score can be reproduced.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub record: Option<ScoreRecord>,
     /// The bootstrap 95 % interval of `score` (resampling the dataset's images); absent for a
     /// score stored before intervals were, until it is re-scored.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ci95: Option<[f64; 2]>,
-    /// The stored score whose bootstrap replicates the row's interval is made of (6D boards).
+    /// The stored score whose bootstrap replicates the row's interval is made of (in the 6D
+    /// or the 2D scores, as the board is).
     #[serde(skip)]
     pub score_id: Option<i64>,
     /// 2D boards: the twelve AP/AR numbers of the report under the toolkit's keys.

@@ -55,9 +55,12 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
         Status::Done | Status::Failed => (None, None),
     };
     let reports = app.store.reports_of_submission(id).await?;
-    let records = app.store.score_records(id).await?;
+    let mut records = app.store.score_records(id).await?;
     let coco = match submission.task {
-        Some(_) => app.store.coco_report(id).await?,
+        Some(_) => {
+            records.extend(app.store.coco_record(id).await?);
+            app.store.coco_report(id).await?
+        }
         None => None,
     };
     let mut entries: Vec<(BoardProtocol, SubmissionId, bool)> = app

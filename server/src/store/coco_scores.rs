@@ -4,14 +4,16 @@
 //! finished and scored for the task; otherwise its best public finished one, the earlier on a
 //! tie.
 
-use evaluator::coco::CocoReport;
+use evaluator::coco::{CocoParameters, CocoReport};
+use evaluator::report::as_defined;
 use sqlx::Row;
 use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
-use super::{Store, StoreError, StoreResult};
+use super::scores::{RecordParameters, ScoreRecord, stored_parameters};
+use super::{Store, StoreError, StoreResult, parse_column};
 use crate::domain::{
-    CocoProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
+    BoardProtocol, CocoProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
 };
 
 /// A method's entry on a dataset's board of a 2D task.
@@ -32,6 +34,38 @@ pub struct CocoBoardEntry {
     /// Seconds per image; `None` when the file gave no time.
     pub time_avg: Option<f64>,
     pub report: CocoReport,
+    /// The stored score (whose bootstrap replicates an average's interval is made of).
+    pub score_id: i64,
+    /// The bootstrap 95 % interval of the AP, for scores stored with replicates.
+    pub ci95: Option<[f64; 2]>,
+    pub record: ScoreRecord,
+}
+
+/// The columns [`record`] and [`ci95`] read, for a query joining `coco_scores c` and
+/// `submissions s`.
+const RECORD_COLUMNS: &str = "c.task, c.evaluator_version, c.parameters_json, c.dataset_hash, \
+     s.file_sha256, c.ci_low, c.ci_high";
+
+fn record(row: &AnyRow) -> StoreResult<ScoreRecord> {
+    let task: CocoProtocol = parse_column("task", row.try_get("task")?)?;
+    Ok(ScoreRecord {
+        evaluator_version: row.try_get("evaluator_version")?,
+        protocol: BoardProtocol::Coco(task),
+        // Read back as the protocol defines them, as a 6D record is.
+        parameters: stored_parameters::<CocoParameters>(row)?.map(|mut p| {
+            p.iou_thresholds = p.iou_thresholds.into_iter().map(as_defined).collect();
+            RecordParameters::Coco(p)
+        }),
+        dataset_hash: row.try_get("dataset_hash")?,
+        file_sha256: row.try_get("file_sha256")?,
+    })
+}
+
+fn ci95(row: &AnyRow) -> StoreResult<Option<[f64; 2]>> {
+    Ok(match (row.try_get("ci_low")?, row.try_get("ci_high")?) {
+        (Some(low), Some(high)) => Some([low, high]),
+        _ => None,
+    })
 }
 
 /// The id of the entry, for the task `$1`, of the method and dataset of the submission `s`.
@@ -65,6 +99,24 @@ impl Store {
             .await?
             .as_ref()
             .map(report)
+            .transpose()
+    }
+
+    /// The reproducibility record of a submission's 2D score, once scored.
+    pub async fn coco_record(
+        &self,
+        submission_id: SubmissionId,
+    ) -> StoreResult<Option<ScoreRecord>> {
+        let sql = format!(
+            "SELECT {RECORD_COLUMNS} FROM coco_scores c JOIN submissions s \
+             ON s.id = c.submission_id WHERE c.submission_id = $1"
+        );
+        sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(submission_id)
+            .fetch_optional(&self.pool)
+            .await?
+            .as_ref()
+            .map(record)
             .transpose()
     }
 
@@ -117,7 +169,8 @@ impl Store {
         dataset_id: Option<DatasetId>,
     ) -> StoreResult<Vec<CocoBoardEntry>> {
         let sql = format!(
-            "SELECT c.submission_id, c.time_avg, c.report_json, s.method_id, m.name AS method, \
+            "SELECT c.id AS score_id, c.submission_id, c.time_avg, c.report_json, {RECORD_COLUMNS}, \
+             s.method_id, m.name AS method, \
              COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
              s.dataset_id, d.name AS dataset, \
              CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
@@ -149,6 +202,9 @@ impl Store {
                     pinned: r.try_get::<i64, _>("pinned")? != 0,
                     time_avg: r.try_get("time_avg")?,
                     report: report(r)?,
+                    score_id: r.try_get("score_id")?,
+                    ci95: ci95(r)?,
+                    record: record(r)?,
                 })
             })
             .collect()

@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 
 use evaluator::Report;
-use evaluator::coco::CocoReport;
+use evaluator::coco::{CocoParameters, CocoReport};
 use evaluator::protocol::ProtocolName;
 use sqlx::{Any, Row, Transaction};
 
@@ -31,6 +31,19 @@ pub struct Finished {
     pub eval_ms: i64,
     /// The content hash of the dataset copy the scores were computed on (the scores'
     /// reproducibility record).
+    pub dataset_hash: String,
+}
+
+/// A finished 2D evaluation, as [`Store::finish_coco`] stores it.
+pub struct FinishedCoco {
+    pub report: CocoReport,
+    /// The bootstrap replicates of the AP (whose interval the report's `bootstrap` records);
+    /// empty when there was nothing to resample.
+    pub replicates: Vec<f64>,
+    /// COCOeval's parameters, for the reproducibility record.
+    pub parameters: CocoParameters,
+    pub eval_ms: i64,
+    /// The content hash of the dataset copy the score was computed on.
     pub dataset_hash: String,
 }
 
@@ -130,18 +143,19 @@ impl Store {
     }
 
     /// [`Store::finish`] for a 2D task: its report goes to `coco_scores`, with its AP for the
-    /// boards, in the transaction that marks the job done and bumps the board version.
+    /// boards, its interval and replicates and its reproducibility record, in the transaction
+    /// that marks the job done and bumps the board version.
     pub async fn finish_coco(
         &self,
         id: SubmissionId,
         worker: &str,
-        report: &CocoReport,
-        eval_ms: i64,
+        finished: &FinishedCoco,
     ) -> StoreResult<bool> {
+        let report = &finished.report;
         let mut tx = self.write_transaction().await?;
         let now = now_ms();
         let work = report.entries_evaluated as i64;
-        if !mark_done(&mut tx, id, worker, work, eval_ms, now).await? {
+        if !mark_done(&mut tx, id, worker, work, finished.eval_ms, now).await? {
             let mine = done_by(&mut tx, id, worker).await?;
             tx.rollback().await?;
             return Ok(mine);
@@ -154,11 +168,20 @@ impl Store {
             .bind(id)
             .execute(&mut *tx)
             .await?;
+        let parameters =
+            serde_json::to_string(&finished.parameters).map_err(|e| StoreError::Corrupt {
+                column: "parameters_json",
+                value: e.to_string(),
+            })?;
+        let ci95 = report.bootstrap.as_ref().map(|b| b.ci95);
         sqlx::query(
             "INSERT INTO coco_scores (submission_id, task, ap, time_avg, entries_evaluated, \
-             report_json, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7)",
+             report_json, created_at, ci_low, ci_high, replicates, evaluator_version, \
+             parameters_json, dataset_hash) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13)",
         )
-        // The time is NULL or a number; a cached statement would keep the first one's type.
+        // The time and the interval are NULL or numbers; a cached statement would keep the
+        // first one's types.
         .persistent(false)
         .bind(id)
         .bind(report.protocol.as_str())
@@ -168,6 +191,12 @@ impl Store {
         .bind(work)
         .bind(json)
         .bind(now)
+        .bind(ci95.map(|c| c[0]))
+        .bind(ci95.map(|c| c[1]))
+        .bind(replicates_bytes(&finished.replicates))
+        .bind(&report.evaluator_version)
+        .bind(parameters)
+        .bind(&finished.dataset_hash)
         .execute(&mut *tx)
         .await?;
         board_version::bump(&mut tx).await?;

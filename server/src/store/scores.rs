@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 
 use evaluator::Report;
+use evaluator::coco::CocoParameters;
 use evaluator::protocol::ProtocolName;
 use evaluator::report::Parameters;
 use serde::Serialize;
@@ -14,7 +15,9 @@ use sqlx::any::AnyRow;
 use super::methods::optional_column;
 use super::queue::replicates_from;
 use super::{Store, StoreError, StoreResult, parse_column};
-use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId};
+use crate::domain::{
+    BoardProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
+};
 
 /// One protocol's headline numbers of a submission.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -41,12 +44,52 @@ pub struct ScoreRow {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ScoreRecord {
     pub evaluator_version: Option<String>,
-    pub protocol: ProtocolName,
-    pub parameters: Option<Parameters>,
+    pub protocol: BoardProtocol,
+    pub parameters: Option<RecordParameters>,
     /// The content hash of the dataset copy the score was computed on.
     pub dataset_hash: Option<String>,
     /// SHA-256 of the uploaded result file.
     pub file_sha256: String,
+}
+
+/// The parameters a score was computed with: a 6D protocol's, or COCOeval's for a 2D task.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum RecordParameters {
+    Pose(Parameters),
+    Coco(CocoParameters),
+}
+
+impl ScoreRecord {
+    /// A 6D score's parameters (for the page, which lays the two kinds out differently).
+    pub fn pose_parameters(&self) -> Option<&Parameters> {
+        match &self.parameters {
+            Some(RecordParameters::Pose(p)) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// A 2D score's parameters.
+    pub fn coco_parameters(&self) -> Option<&CocoParameters> {
+        match &self.parameters {
+            Some(RecordParameters::Coco(p)) => Some(p),
+            _ => None,
+        }
+    }
+}
+
+/// The parameters stored in `parameters_json`, parsed as `T`.
+pub(super) fn stored_parameters<T: serde::de::DeserializeOwned>(
+    row: &AnyRow,
+) -> StoreResult<Option<T>> {
+    row.try_get::<Option<String>, _>("parameters_json")?
+        .map(|json| {
+            serde_json::from_str::<T>(&json).map_err(|_| StoreError::Corrupt {
+                column: "parameters_json",
+                value: json,
+            })
+        })
+        .transpose()
 }
 
 /// The columns [`score`] reads, for a query joining `scores sc` and `submissions s`.
@@ -110,17 +153,8 @@ const PINNED_SQL: &str = "CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p \
 fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
     let protocol = parse_column("protocol", row.try_get("protocol")?)?;
     // A record is read by people: its numbers as the protocol defines them, whenever scored.
-    let parameters = row
-        .try_get::<Option<String>, _>("parameters_json")?
-        .map(|json| {
-            serde_json::from_str::<Parameters>(&json)
-                .map(|p| p.as_defined())
-                .map_err(|_| StoreError::Corrupt {
-                    column: "parameters_json",
-                    value: json,
-                })
-        })
-        .transpose()?;
+    let parameters =
+        stored_parameters::<Parameters>(row)?.map(|p| RecordParameters::Pose(p.as_defined()));
     Ok(ScoreRow {
         id: row.try_get("score_id")?,
         submission_id: row.try_get("submission_id")?,
@@ -135,7 +169,7 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
         estimates_ignored: row.try_get("estimates_ignored")?,
         record: ScoreRecord {
             evaluator_version: row.try_get("evaluator_version")?,
-            protocol,
+            protocol: protocol.into(),
             parameters,
             dataset_hash: row.try_get("dataset_hash")?,
             file_sha256: row.try_get("file_sha256")?,
@@ -251,15 +285,21 @@ impl Store {
         Ok(entries)
     }
 
-    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id.
-    pub async fn replicates(&self, ids: &[i64]) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
+    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id: of
+    /// the 6D scores, or with `coco` of the 2D tasks' (whose ids are their own).
+    pub async fn replicates(
+        &self,
+        ids: &[i64],
+        coco: bool,
+    ) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
+        let table = if coco { "coco_scores" } else { "scores" };
         let mut out = BTreeMap::new();
         // In slices, so that no statement has more parameters than a database takes.
         for chunk in ids.chunks(500) {
             let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
             // Only the placeholders' count comes from the caller.
             let sql = format!(
-                "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN ({})",
+                "SELECT id, replicates FROM {table} WHERE replicates IS NOT NULL AND id IN ({})",
                 marks.join(", ")
             );
             let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));

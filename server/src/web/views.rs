@@ -258,7 +258,7 @@ pub struct SubmissionView {
     /// Per protocol, the full report (the same keys as `poseboard eval --out`).
     pub scores: BTreeMap<ProtocolName, Report>,
     /// Per protocol scored, how the score can be reproduced.
-    pub records: BTreeMap<ProtocolName, ScoreRecord>,
+    pub records: BTreeMap<BoardProtocol, ScoreRecord>,
     /// A 2D task's report (the keys of `poseboard eval --protocol bop22-det|bop22-seg --out`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coco: Option<CocoReport>,

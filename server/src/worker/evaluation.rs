@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
-use evaluator::coco::{self, CocoReport};
+use evaluator::coco;
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Progress, bootstrap, evaluate as evaluate_protocol, results};
 
@@ -21,7 +21,7 @@ use crate::datasets::uploaded_file;
 use crate::domain::CocoProtocol;
 use crate::error::Chain;
 use crate::store::pose_errors::NewErrors;
-use crate::store::queue::Finished;
+use crate::store::queue::{Finished, FinishedCoco};
 use crate::store::submissions::SubmissionRow;
 
 /// How a job ended for this worker.
@@ -41,10 +41,7 @@ pub(super) enum JobError {
 /// What a job's evaluation gives: a 6D file's reports and errors, or a 2D file's report.
 pub(super) enum Outcome {
     Pose(Finished),
-    Coco {
-        report: Box<CocoReport>,
-        eval_ms: i64,
-    },
+    Coco(Box<FinishedCoco>),
 }
 
 /// Evaluates `job` under `state` (its progress and its cancellation).
@@ -94,7 +91,7 @@ pub(super) async fn evaluate(
 
     let (dataset, dataset_hash) = (loaded.dataset, loaded.content_hash);
     if let Some(task) = job.task {
-        return evaluate_coco(app, task, dataset.root.clone(), bytes).await;
+        return evaluate_coco(app, task, dataset.root.clone(), bytes, dataset_hash).await;
     }
     let protocols: Vec<ProtocolName> = job.protocols.clone();
     let (counter, started, cancel, taken) = (
@@ -145,13 +142,15 @@ pub(super) async fn evaluate(
 }
 
 /// Scores a BOP'22 2D file on the evaluation threads: the dataset's ground truth is read for
-/// the job (with the masks for segmentation) and COCOeval runs on the pool. COCOeval has no
-/// progress to report; a cancelled job's result is dropped by the caller.
+/// the job (with the masks for segmentation), COCOeval runs on the pool, and the AP's
+/// bootstrap is drawn as a 6D headline's is. COCOeval has no progress to report; a cancelled
+/// job's result is dropped by the caller.
 async fn evaluate_coco(
     app: &AppState,
     task: CocoProtocol,
     root: std::path::PathBuf,
     bytes: Vec<u8>,
+    dataset_hash: String,
 ) -> Result<Outcome, JobError> {
     let pool_app = app.clone();
     tokio::task::spawn_blocking(move || {
@@ -162,14 +161,22 @@ async fn evaluate_coco(
             let with_masks = task == CocoProtocol::Segmentation;
             let gt = datasets::config::coco_gt(&root, with_masks)
                 .map_err(|e| JobError::Service(e.to_string()))?;
-            let report = coco::evaluate(&gt, &results, task.task()).map_err(|e| match e {
-                evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
-                other => JobError::Service(other.to_string()),
-            })?;
-            Ok(Outcome::Coco {
-                report: Box::new(report),
+            let mut evaluation =
+                coco::evaluation(&gt, &results, task.task()).map_err(|e| match e {
+                    evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
+                    other => JobError::Service(other.to_string()),
+                })?;
+            let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
+            let replicates = evaluation
+                .bootstrap(seed, bootstrap::REPLICATES)
+                .map_or_else(Vec::new, |b| b.replicates);
+            Ok(Outcome::Coco(Box::new(FinishedCoco {
+                report: evaluation.report,
+                replicates,
+                parameters: task.task().parameters(),
                 eval_ms: clock.elapsed().as_millis() as i64,
-            })
+                dataset_hash,
+            })))
         })
     })
     .await

@@ -44,7 +44,7 @@ impl Worker {
                     .map(|r| r.estimates_evaluated as u64)
                     .sum(),
             )),
-            Ok(Outcome::Coco { report, .. }) => Some(Some(report.entries_evaluated as u64)),
+            Ok(Outcome::Coco(finished)) => Some(Some(finished.report.entries_evaluated as u64)),
             Err(JobError::User(_)) => Some(None),
             Err(JobError::Service(_)) if job.attempts >= MAX_ATTEMPTS => Some(None),
             Err(_) => None,
@@ -57,9 +57,9 @@ impl Worker {
                 })
                 .await
             }
-            Ok(Outcome::Coco { report, eval_ms }) => {
+            Ok(Outcome::Coco(finished)) => {
                 retry::persist(shutdown, "store the scores", None, || {
-                    app.store.finish_coco(id, worker, &report, eval_ms)
+                    app.store.finish_coco(id, worker, &finished)
                 })
                 .await
             }

@@ -16,6 +16,7 @@ mod board_cache;
 mod bop24_cli;
 mod browser;
 mod challenge_datasets;
+mod coco_boards;
 mod coco_cli;
 mod coco_service;
 mod common;

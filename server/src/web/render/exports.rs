@@ -12,7 +12,7 @@ use serde_json::json;
 use crate::domain::BoardProtocol;
 use crate::error::{AppError, AppResult};
 use crate::store::scores::ScoreRecord;
-use crate::web::views::{BoardRow, Leaderboard};
+use crate::web::views::{BoardRow, Cell as BoardCell, Leaderboard};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Export {
@@ -42,17 +42,28 @@ impl Export {
     pub fn render(self, board: &Leaderboard) -> AppResult<Vec<u8>> {
         Ok(match self {
             Export::Csv => csv(board).into_bytes(),
-            Export::Json => serde_json::to_vec_pretty(&json!({
-                "protocol": board.protocol,
-                "score_name": board.score_name,
-                "time_unit": board.time_unit,
-                "parameters": board.parameters,
-                "dataset": board.dataset.as_ref().map(|d| &d.name),
-                "columns": board.columns.iter().map(|d| &d.name).collect::<Vec<_>>(),
-                "filter": board.filter,
-                "rows": board.rows,
-            }))
-            .map_err(|e| AppError::failed("writing the export JSON", e))?,
+            Export::Json => {
+                let mut out = json!({
+                    "protocol": board.protocol,
+                    "score_name": board.score_name,
+                    "time_unit": board.time_unit,
+                    "dataset": board.dataset.as_ref().map(|d| &d.name),
+                    "columns": board.columns.iter().map(|d| &d.name).collect::<Vec<_>>(),
+                    "filter": board.filter,
+                    "rows": board.rows,
+                });
+                // A 2D board's parameters are COCOeval's; its numbers are named in `stats`.
+                let parameters = match board.protocol {
+                    BoardProtocol::Pose(_) => json!(board.parameters),
+                    BoardProtocol::Coco(t) => json!(t.task().parameters()),
+                };
+                out["parameters"] = parameters;
+                if board.protocol.is_coco() {
+                    out["stats"] = json!(board.stat_names);
+                }
+                serde_json::to_vec_pretty(&out)
+                    .map_err(|e| AppError::failed("writing the export JSON", e))?
+            }
             Export::Tex => latex(board).into_bytes(),
         })
     }
@@ -71,8 +82,7 @@ impl Export {
     }
 }
 
-/// The parameters of a record as compact JSON (empty when not recorded).
-/// The record's columns; empty for a 2D board's score, which keeps none.
+/// The record's columns (empty for a score without one).
 fn record_fields(r: Option<&ScoreRecord>) -> [String; 5] {
     match r {
         Some(r) => [
@@ -86,6 +96,7 @@ fn record_fields(r: Option<&ScoreRecord>) -> [String; 5] {
     }
 }
 
+/// The parameters of a record as compact JSON (empty when not recorded).
 fn parameters(r: &ScoreRecord) -> String {
     r.parameters
         .as_ref()
@@ -106,26 +117,64 @@ fn number(v: Option<f64>) -> String {
     v.map_or(String::new(), |v| v.to_string())
 }
 
+/// What every score has after its numbers: its submission and reproducibility record.
+const RECORD: [&str; 7] = [
+    "submission_id",
+    "pinned",
+    "evaluator_version",
+    "protocol",
+    "parameters",
+    "dataset_hash",
+    "file_sha256",
+];
+
+/// A 6D score's numbers, per dataset.
+const POSE_NUMBERS: [&str; 6] = ["score", "recall", "ar_vsd", "ar_mssd", "ar_mspd", "time"];
+
+/// The numbers of a score in the CSV, per dataset: a 6D protocol's headline and breakdowns, or
+/// a 2D task's twelve AP/AR numbers, each with its time (and a 2D score its interval, which
+/// the JSON of either kind carries as `ci95`).
+fn numbers(board: &Leaderboard) -> Vec<&'static str> {
+    match board.protocol {
+        BoardProtocol::Pose(_) => POSE_NUMBERS.to_vec(),
+        BoardProtocol::Coco(_) => {
+            let mut names = board.stat_names.clone();
+            names.extend(["time", "ci95_low", "ci95_high"]);
+            names
+        }
+    }
+}
+
+/// The values of [`numbers`] of a cell.
+fn number_fields(board: &Leaderboard, c: &BoardCell) -> Vec<String> {
+    match board.protocol {
+        BoardProtocol::Pose(_) => vec![
+            c.score.to_string(),
+            number(c.recall),
+            number(c.ar_vsd),
+            number(c.ar_mssd),
+            number(c.ar_mspd),
+            number(c.time),
+        ],
+        BoardProtocol::Coco(_) => {
+            let mut values: Vec<String> =
+                board.stat_names.iter().map(|k| number(c.stat(k))).collect();
+            values.extend([
+                number(c.time),
+                number(c.ci95.map(|v| v[0])),
+                number(c.ci95.map(|v| v[1])),
+            ]);
+            values
+        }
+    }
+}
+
 /// Every row with every column: the method's facts; per dataset shown, its score with the
-/// breakdowns, time, submission and reproducibility record; the row's average, mean, coverage
-/// and time; and with one dataset, the per-object scores. Scores are fractions, at full
-/// precision.
+/// breakdowns (a 2D board: its AP/AR numbers and interval), time, submission and
+/// reproducibility record; the row's average, mean, coverage and time; and with one dataset,
+/// the per-object scores. Scores are fractions, at full precision.
 fn csv(board: &Leaderboard) -> String {
-    const PER_DATASET: [&str; 13] = [
-        "score",
-        "recall",
-        "ar_vsd",
-        "ar_mssd",
-        "ar_mspd",
-        "time",
-        "submission_id",
-        "pinned",
-        "evaluator_version",
-        "protocol",
-        "parameters",
-        "dataset_hash",
-        "file_sha256",
-    ];
+    let per_dataset: Vec<&str> = numbers(board).into_iter().chain(RECORD).collect();
     let mut header: Vec<String> = [
         "rank",
         "method",
@@ -138,7 +187,7 @@ fn csv(board: &Leaderboard) -> String {
     .map(|s| s.to_string())
     .collect();
     for d in &board.columns {
-        header.extend(PER_DATASET.iter().map(|k| format!("{} {k}", d.name)));
+        header.extend(per_dataset.iter().map(|k| format!("{} {k}", d.name)));
     }
     header.extend(["average", "mean", "covered", "time"].map(String::from));
     header.extend(board.object_ids.iter().map(|o| format!("obj {o}")));
@@ -155,19 +204,11 @@ fn csv(board: &Leaderboard) -> String {
         for d in &board.columns {
             match row.scores.get(&d.name) {
                 Some(c) => {
-                    cells.extend([
-                        c.score.to_string(),
-                        number(c.recall),
-                        number(c.ar_vsd),
-                        number(c.ar_mssd),
-                        number(c.ar_mspd),
-                        number(c.time),
-                        c.submission_id.to_string(),
-                        c.pinned.to_string(),
-                    ]);
+                    cells.extend(number_fields(board, c));
+                    cells.extend([c.submission_id.to_string(), c.pinned.to_string()]);
                     cells.extend(record_fields(c.record.as_ref()));
                 }
-                None => cells.extend(PER_DATASET.iter().map(|_| String::new())),
+                None => cells.extend(per_dataset.iter().map(|_| String::new())),
             }
         }
         cells.extend([
