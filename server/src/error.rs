@@ -27,6 +27,14 @@ pub enum AppError {
     /// A name in the request that names nothing here, with what there is instead.
     #[error("{0}")]
     Unknown(String),
+    /// Something the resource asked about does not have (a 2D submission's targets), with
+    /// where to go instead, each link a label and a path of this service: the page answering
+    /// it is no dead end.
+    #[error("{message}")]
+    NotHere {
+        message: String,
+        links: Vec<(String, String)>,
+    },
     /// No valid credentials (or a revoked token).
     #[error("{0}")]
     Unauthorized(String),

@@ -6,14 +6,15 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use evaluator::coco::{self, CocoReport, ImageOutcome};
 use evaluator::dataset::Target;
 use evaluator::protocol::ProtocolName;
 use evaluator::results::{self, Results};
 use evaluator::{Dataset, Report};
 
 use crate::app::App;
-use crate::datasets::uploaded_file;
-use crate::domain::SubmissionId;
+use crate::datasets::{self, uploaded_file};
+use crate::domain::{CocoProtocol, SubmissionId};
 use crate::error::{AppError, AppResult};
 use crate::service::visibility;
 use crate::store::accounts::User;
@@ -76,8 +77,9 @@ pub async fn reports(app: &App, id: SubmissionId) -> AppResult<BTreeMap<Protocol
         .collect())
 }
 
-/// The submissions `s` can be compared with: finished, on its dataset, visible to `reader`
-/// (at most 200).
+/// The submissions `s` can be compared with: finished, on its dataset, visible to `reader`,
+/// and scored under a protocol `s` was scored under (a 6D submission with a 6D one, a 2D one
+/// with one of its task), newest first (of the newest 200 on the dataset).
 pub async fn comparable(
     app: &App,
     s: &SubmissionRow,
@@ -87,10 +89,60 @@ pub async fn comparable(
         return Ok(Vec::new());
     }
     let reader_id = reader.map(|u| u.id);
-    Ok(app
+    let mut rows = app
         .store
         .finished_on_dataset(s.dataset_id, s.id, reader_id, 200)
-        .await?)
+        .await?;
+    rows.retain(|o| share_a_protocol((&s.protocols, s.task), (&o.protocols, o.task)));
+    Ok(rows)
+}
+
+/// Whether two submissions, each with its 6D protocols or its 2D task, were scored under a
+/// protocol in common: the rule of what compares.
+pub fn share_a_protocol(
+    (a, a_task): (&[ProtocolName], Option<CocoProtocol>),
+    (b, b_task): (&[ProtocolName], Option<CocoProtocol>),
+) -> bool {
+    match (a_task, b_task) {
+        (Some(x), Some(y)) => x == y,
+        (None, None) => a.iter().any(|p| b.contains(p)),
+        _ => false,
+    }
+}
+
+/// What COCOeval counts image by image and category at IoU 0.5 for the 2D submission `s`
+/// (one has been checked visible and finished), from its stored file scored again on the
+/// dataset's ground truth as the worker scored it.
+pub async fn coco_outcomes(
+    app: &App,
+    s: &SubmissionRow,
+    task: CocoProtocol,
+) -> AppResult<Vec<ImageOutcome>> {
+    let root = dataset_of(app, s).await?.root.clone();
+    let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), &s.file_sha256)
+        .await
+        .map_err(|e| AppError::failed("reading the stored result file", e))?;
+    app.on_pool("scoring a stored 2D file", move || {
+        let results = coco::parse_coco_results(&bytes[..])
+            .map_err(|p| AppError::Internal(format!("the stored file no longer parses: {p}")))?;
+        let gt = datasets::config::coco_gt(&root, task == CocoProtocol::Segmentation)
+            .map_err(|e| AppError::failed("reading the COCO ground truth", e))?;
+        let evaluation = coco::evaluation(&gt, &results, task.task())
+            .map_err(|e| AppError::failed("scoring a stored 2D file", e))?;
+        Ok(evaluation
+            .images
+            .map(|images| images.outcomes_at_50(&gt))
+            .unwrap_or_default())
+    })
+    .await
+}
+
+/// The stored report of the 2D submission `id` (one has been checked visible).
+pub async fn coco_report(app: &App, id: SubmissionId) -> AppResult<CocoReport> {
+    app.store
+        .coco_report(id)
+        .await?
+        .ok_or_else(|| AppError::BadRequest(format!("submission {id} has no 2D scores")))
 }
 
 /// A test target: (scene_id, im_id, obj_id).
@@ -161,4 +213,23 @@ pub async fn picture_inputs(
         target: found,
         protocol,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_submissions_scored_alike_compare() {
+        use ProtocolName::{Bop19, Eccv18};
+        let det = Some(CocoProtocol::Detection);
+        let seg = Some(CocoProtocol::Segmentation);
+        assert!(share_a_protocol((&[Bop19, Eccv18], None), (&[Bop19], None)));
+        assert!(!share_a_protocol((&[Eccv18], None), (&[Bop19], None)));
+        // A 6D submission never compares with a 2D one, whatever its (empty) protocols.
+        assert!(!share_a_protocol((&[Bop19], None), (&[], det)));
+        assert!(!share_a_protocol((&[], det), (&[Bop19], None)));
+        assert!(share_a_protocol((&[], det), (&[], det)));
+        assert!(!share_a_protocol((&[], det), (&[], seg)));
+    }
 }

@@ -23,12 +23,24 @@ pub struct ErrorBody {
     /// For 413: the largest body accepted, in bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub limit_bytes: Option<u64>,
+    /// Where to go instead (404 of something a resource does not have).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<ErrorLink>,
+}
+
+/// A page of this service an error answer points to.
+#[derive(Clone, Debug, Serialize)]
+pub struct ErrorLink {
+    pub label: String,
+    pub href: String,
 }
 
 impl AppError {
     pub fn status(&self) -> StatusCode {
         match self {
-            AppError::NotFound | AppError::Unknown(_) => StatusCode::NOT_FOUND,
+            AppError::NotFound | AppError::Unknown(_) | AppError::NotHere { .. } => {
+                StatusCode::NOT_FOUND
+            }
             AppError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
             AppError::Forbidden(_) => StatusCode::FORBIDDEN,
             AppError::Conflict(_) => StatusCode::CONFLICT,
@@ -63,11 +75,22 @@ impl AppError {
             AppError::TooLarge { limit } => Some(*limit),
             _ => None,
         };
+        let links = match self {
+            AppError::NotHere { links, .. } => links
+                .iter()
+                .map(|(label, href)| ErrorLink {
+                    label: label.clone(),
+                    href: href.clone(),
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         ErrorBody {
             error,
             problems,
             retry_at,
             limit_bytes,
+            links,
         }
     }
 }

@@ -21,6 +21,7 @@ mod coco_cli;
 mod coco_service;
 mod common;
 mod compare;
+mod compare_tasks;
 mod connections;
 mod copy_db;
 mod datasets;

@@ -228,6 +228,9 @@ fn error_schema() -> Value {
                     "message": { "type": "string" }
                 } } },
             "retry_at": { "type": "integer", "description": "429: when the next request is allowed, epoch milliseconds (also the Retry-After header, in seconds)" },
+            "links": { "type": "array", "description": "404 of something a resource does not have (a 2D submission's targets): where to go instead", "items": {
+                "type": "object", "required": ["label", "href"],
+                "properties": { "label": { "type": "string" }, "href": { "type": "string" } } } },
             "limit_bytes": { "type": "integer", "description": "413: the largest upload accepted" }
         }
     })

@@ -4,6 +4,7 @@
 use askama::Template;
 use askama_web::WebTemplate;
 use axum::extract::{Path, Query, State};
+use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use evaluator::protocol::ProtocolName;
@@ -13,7 +14,9 @@ use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::web::auth::Viewer;
 use crate::web::routes::pages::filters;
-use crate::web::views::targets::{self, Choice, CompareQuery, Comparison, Gallery, TargetView};
+use crate::web::views::targets::{
+    self, Choice, CocoComparison, CompareQuery, Compared, Comparison, Gallery, TargetView,
+};
 
 pub fn page_router() -> Router<AppState> {
     Router::new()
@@ -40,16 +43,23 @@ pub fn api_router() -> Router<AppState> {
 #[derive(Template, WebTemplate)]
 #[template(path = "compare.html")]
 struct ComparePage {
-    view: Comparison,
+    view: Box<Comparison>,
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "compare_coco.html")]
+struct CocoComparePage {
+    view: Box<CocoComparison>,
 }
 
 async fn compare_page(
     State(app): State<AppState>,
     viewer: Viewer,
     Query(q): Query<CompareQuery>,
-) -> AppResult<ComparePage> {
-    Ok(ComparePage {
-        view: targets::compare(&app, &q, &viewer).await?,
+) -> AppResult<Response> {
+    Ok(match targets::compare(&app, &q, &viewer).await? {
+        Compared::Pose(view) => ComparePage { view }.into_response(),
+        Compared::Coco(view) => CocoComparePage { view }.into_response(),
     })
 }
 
@@ -57,7 +67,7 @@ async fn compare_json(
     State(app): State<AppState>,
     viewer: Viewer,
     Query(q): Query<CompareQuery>,
-) -> AppResult<Json<Comparison>> {
+) -> AppResult<Json<Compared>> {
     Ok(Json(targets::compare(&app, &q, &viewer).await?))
 }
 

@@ -7,13 +7,14 @@
 use std::collections::BTreeMap;
 
 use evaluator::Report;
+use evaluator::coco::{CocoReport, ImageOutcome};
 use evaluator::matching::EstimateErrors;
 use evaluator::outcomes::{Criterion, TargetOutcome, outcomes};
 use evaluator::protocol::{ErrorKind, Protocol, ProtocolName, columns, normalised_error};
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
-use crate::domain::{MethodId, SubmissionId};
+use crate::domain::{CocoProtocol, MethodId, SubmissionId};
 use crate::error::{AppError, AppResult};
 use crate::service::inspection;
 use crate::store::submissions::SubmissionRow;
@@ -168,7 +169,7 @@ impl CompareQuery {
 #[derive(Clone, Debug, Serialize)]
 pub struct ScorePair {
     pub name: &'static str,
-    /// `recall` (shown in percent) or `seconds`.
+    /// `recall` or `fraction` (both shown in percent), or `seconds`.
     pub unit: &'static str,
     pub a: Option<f64>,
     pub b: Option<f64>,
@@ -393,8 +394,179 @@ fn pair(
     (counts, targets)
 }
 
-/// Compares submissions `a` and `b`, both visible to `viewer`, finished and on one dataset.
-pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<Comparison> {
+/// Two submissions compared: 6D ones target by target, 2D ones image by image.
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum Compared {
+    Pose(Box<Comparison>),
+    Coco(Box<CocoComparison>),
+}
+
+/// What COCOeval counts of one submission at IoU 0.5 in an image and category (or summed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct MatchCounts {
+    pub matched: usize,
+    pub missed: usize,
+    pub false_positives: usize,
+}
+
+impl MatchCounts {
+    fn of(o: &ImageOutcome) -> MatchCounts {
+        MatchCounts {
+            matched: o.matched,
+            missed: o.missed(),
+            false_positives: o.false_positives,
+        }
+    }
+
+    fn add(&mut self, c: MatchCounts) {
+        self.matched += c.matched;
+        self.missed += c.missed;
+        self.false_positives += c.false_positives;
+    }
+}
+
+/// An image and category where two 2D submissions differ.
+#[derive(Clone, Debug, Serialize)]
+pub struct ImagePair {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub category_id: i64,
+    /// Its ground-truth instances that count (not ignored).
+    pub instances: usize,
+    pub a: MatchCounts,
+    pub b: MatchCounts,
+}
+
+/// Two 2D submissions of one task on one dataset, side by side: their stored AP/AR numbers,
+/// and what COCOeval counts image by image and category at IoU 0.5 (the counts behind AP50).
+#[derive(Clone, Debug, Serialize)]
+pub struct CocoComparison {
+    pub dataset: String,
+    pub a: Named,
+    pub b: Named,
+    pub task: CocoProtocol,
+    /// AP first, then the other eleven numbers and the time per image.
+    pub scores: Vec<ScorePair>,
+    /// Ground-truth instances that count, over every target image.
+    pub instances: usize,
+    /// Summed over the images and categories.
+    pub a_total: MatchCounts,
+    pub b_total: MatchCounts,
+    /// Every image and category where they differ, in the dataset's image order.
+    pub images: Vec<ImagePair>,
+}
+
+/// The images and categories of two submissions' outcomes (each in the same image order,
+/// listing the images and categories with ground truth or detections), paired.
+fn pair_images(
+    a: &[ImageOutcome],
+    b: &[ImageOutcome],
+) -> (usize, MatchCounts, MatchCounts, Vec<ImagePair>) {
+    type Key = (u32, u32, i64);
+    let by_key = |list: &[ImageOutcome]| -> BTreeMap<Key, ImageOutcome> {
+        list.iter()
+            .map(|o| ((o.scene_id, o.im_id, o.category_id), o.clone()))
+            .collect()
+    };
+    let (ma, mb) = (by_key(a), by_key(b));
+    let (mut ta, mut tb) = (MatchCounts::default(), MatchCounts::default());
+    let mut instances = 0;
+    let mut images = Vec::new();
+    // The image order of `a` then any key of `b` alone (an image only b detected in).
+    let mut keys: Vec<Key> = a
+        .iter()
+        .map(|o| (o.scene_id, o.im_id, o.category_id))
+        .collect();
+    keys.extend(
+        b.iter()
+            .map(|o| (o.scene_id, o.im_id, o.category_id))
+            .filter(|k| !ma.contains_key(k)),
+    );
+    for key @ (scene_id, im_id, category_id) in keys {
+        let (oa, ob) = (ma.get(&key), mb.get(&key));
+        let n = oa.or(ob).map_or(0, |o| o.instances);
+        instances += n;
+        // A submission without the image and category detected nothing there.
+        let counts = |o: Option<&ImageOutcome>| {
+            o.map_or(
+                MatchCounts {
+                    missed: n,
+                    ..MatchCounts::default()
+                },
+                MatchCounts::of,
+            )
+        };
+        let (ca, cb) = (counts(oa), counts(ob));
+        ta.add(ca);
+        tb.add(cb);
+        if ca != cb {
+            images.push(ImagePair {
+                scene_id,
+                im_id,
+                category_id,
+                instances: n,
+                a: ca,
+                b: cb,
+            });
+        }
+    }
+    (instances, ta, tb, images)
+}
+
+/// The AP/AR numbers of two 2D reports side by side (undefined ones, COCOeval's -1, absent).
+fn coco_scores(a: &CocoReport, b: &CocoReport) -> Vec<ScorePair> {
+    let defined = |v: f64| (v >= 0.0).then_some(v);
+    let mut scores: Vec<ScorePair> = a
+        .stats()
+        .iter()
+        .zip(b.stats())
+        .map(|((name, x), (_, y))| ScorePair {
+            name,
+            unit: "fraction",
+            a: defined(*x),
+            b: defined(y),
+        })
+        .collect();
+    scores.push(ScorePair {
+        name: "Time per image",
+        unit: "seconds",
+        a: defined(a.average_time_per_image),
+        b: defined(b.average_time_per_image),
+    });
+    scores
+}
+
+/// Compares 2D submissions `sa` and `sb` of `task` (both checked visible and finished).
+async fn compare_coco(
+    app: &App,
+    sa: &SubmissionRow,
+    sb: &SubmissionRow,
+    task: CocoProtocol,
+) -> AppResult<CocoComparison> {
+    let (ra, rb) = (
+        inspection::coco_report(app, sa.id).await?,
+        inspection::coco_report(app, sb.id).await?,
+    );
+    let oa = inspection::coco_outcomes(app, sa, task).await?;
+    let ob = inspection::coco_outcomes(app, sb, task).await?;
+    let (instances, a_total, b_total, images) = pair_images(&oa, &ob);
+    Ok(CocoComparison {
+        dataset: sa.dataset.clone(),
+        a: Named::of(sa),
+        b: Named::of(sb),
+        task,
+        scores: coco_scores(&ra, &rb),
+        instances,
+        a_total,
+        b_total,
+        images,
+    })
+}
+
+/// Compares submissions `a` and `b`, both visible to `viewer`, finished, on one dataset and
+/// scored alike: 6D ones target by target, 2D ones of one task image by image.
+pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<Compared> {
     let id = |name: &str, v: &Option<String>| -> AppResult<SubmissionId> {
         let s = field(v).ok_or_else(|| {
             AppError::BadRequest(format!("`{name}` (a submission id) is required"))
@@ -412,6 +584,32 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
              dataset compare",
             sa.dataset, sb.dataset
         )));
+    }
+    match (sa.task, sb.task) {
+        (Some(ta), Some(tb)) if ta == tb => {
+            return Ok(Compared::Coco(Box::new(
+                compare_coco(app, &sa, &sb, ta).await?,
+            )));
+        }
+        (None, None) => {}
+        _ => {
+            let scored = |s: &SubmissionRow| match s.task {
+                Some(t) => t.as_str().to_string(),
+                None => s
+                    .protocols
+                    .iter()
+                    .map(|p| p.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" and "),
+            };
+            return Err(AppError::BadRequest(format!(
+                "submission {ia} is scored under {} and submission {ib} under {}: only \
+                 submissions with a protocol in common compare (the page of submission {ia} \
+                 offers those)",
+                scored(&sa),
+                scored(&sb)
+            )));
+        }
     }
     let reports_a = inspection::reports(app, ia).await?;
     let reports_b = inspection::reports(app, ib).await?;
@@ -442,7 +640,7 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
         })
         .await?;
     let (counts, targets) = pair(&oa, &ob, (ia, ib), &choice);
-    Ok(Comparison {
+    Ok(Compared::Pose(Box::new(Comparison {
         dataset: sa.dataset.clone(),
         a: Named::of(&sa),
         b: Named::of(&sb),
@@ -453,7 +651,7 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
         counts,
         targets,
         choice,
-    })
+    })))
 }
 
 /// The submissions a submission's page offers to compare with: finished, on its dataset,
@@ -464,6 +662,39 @@ pub async fn comparable(app: &App, s: &SubmissionRow, viewer: &Viewer) -> AppRes
         .iter()
         .map(Named::of)
         .collect())
+}
+
+/// Submission `id` if `reader` may see it, it is finished and it has targets: a 2D
+/// submission has none (its detections are scored per image and category), so asking for them
+/// answers where its evidence is instead.
+async fn with_targets(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult<SubmissionRow> {
+    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+    match s.task {
+        None => Ok(s),
+        Some(task) => Err(AppError::NotHere {
+            message: format!(
+                "submission {id} is a {} (2D) submission: it has no 6D targets; its detections \
+                 are scored per image and category, which its page shows and a comparison with \
+                 another {} submission lays out image by image",
+                task.as_str(),
+                task.as_str()
+            ),
+            links: vec![
+                (
+                    format!("Submission {id}: its scores and curves"),
+                    format!("/submissions/{id}"),
+                ),
+                (
+                    format!("The {} board", task.as_str()),
+                    format!(
+                        "/leaderboards/{}?dataset={}",
+                        task.as_str(),
+                        urlencode(&s.dataset)
+                    ),
+                ),
+            ],
+        }),
+    }
 }
 
 // ---- one target ----------------------------------------------------------------------------
@@ -610,7 +841,7 @@ pub async fn target(
     choice: &Choice,
     viewer: &Viewer,
 ) -> AppResult<TargetView> {
-    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+    let s = with_targets(app, id, viewer).await?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
@@ -785,7 +1016,7 @@ pub async fn gallery(
     choice: &Choice,
     viewer: &Viewer,
 ) -> AppResult<Gallery> {
-    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+    let s = with_targets(app, id, viewer).await?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
