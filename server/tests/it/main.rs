@@ -12,6 +12,7 @@
 
 mod accounts;
 mod admin;
+mod backup;
 mod board_cache;
 mod bop24_cli;
 mod browser;
