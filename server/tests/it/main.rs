@@ -24,6 +24,7 @@ mod compare;
 mod connections;
 mod copy_db;
 mod datasets;
+mod db_faults;
 mod demo_start;
 mod deployment;
 mod eval_cli;
