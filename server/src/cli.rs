@@ -1,5 +1,6 @@
 //! The `poseboard` command line: one subcommand per way of using poseboard.
 
+pub mod backup;
 pub mod copy_db;
 pub mod eval;
 pub mod prepare;
@@ -29,6 +30,10 @@ pub enum Command {
     Migrate(service::MigrateArgs),
     /// Copy every row of one database into another (SQLite to PostgreSQL or back).
     CopyDb(copy_db::CopyDbArgs),
+    /// Write a consistent copy of the database, while the service runs, into one SQLite file.
+    Backup(backup::BackupArgs),
+    /// Bring back a database from a file `poseboard backup` wrote (into SQLite or PostgreSQL).
+    Restore(backup::RestoreArgs),
     /// Dataset tools.
     #[command(subcommand)]
     Dataset(service::DatasetCommand),
@@ -52,7 +57,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Worker(args) => service::worker(args),
         Command::Migrate(args) => service::migrate(args),
         Command::CopyDb(args) => copy_db::run(args),
+        Command::Backup(args) => backup::backup(args),
+        Command::Restore(args) => backup::restore(args),
         Command::Dataset(cmd) => service::dataset(cmd),
         Command::Admin(args) => service::admin(args),
     }
+}
+
+/// The runtime of a command that talks to the database or a server.
+fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?)
 }

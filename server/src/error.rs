@@ -135,6 +135,26 @@ impl AppError {
         }
     }
 
+    /// A fault that passes: the database could not be reached or asked for a retry (a lost
+    /// connection, a restarting server, SQLite busy), so the same request may succeed in a
+    /// moment. Looked for in the cause of a [`AppError::Failed`] as well.
+    pub fn is_unavailable(&self) -> bool {
+        match self {
+            AppError::Store(e) => e.is_transient(),
+            AppError::Failed { source, .. } => {
+                let mut cause: Option<&(dyn std::error::Error + 'static)> = Some(source.as_ref());
+                while let Some(e) = cause {
+                    if let Some(store) = e.downcast_ref::<StoreError>() {
+                        return store.is_transient();
+                    }
+                    cause = e.source();
+                }
+                false
+            }
+            _ => false,
+        }
+    }
+
     /// A fault of the service (database, I/O, a bug), not of the request: logged with its
     /// cause, and never described to the client.
     pub fn is_internal(&self) -> bool {

@@ -19,6 +19,7 @@ use sqlx::{Any, AnyPool, Transaction};
 
 pub mod accounts;
 pub mod audit;
+pub mod backup;
 pub mod board_version;
 pub mod coco_scores;
 pub mod copy;
@@ -125,6 +126,30 @@ pub(crate) fn parse_column<T: FromStr>(column: &'static str, value: String) -> S
     value
         .parse()
         .map_err(|_| StoreError::Corrupt { column, value })
+}
+
+/// The rows of `select` (a statement ending in `IN`) for each of `ids`, asked in slices of 500:
+/// no database takes an unbounded number of parameters, and a board may ask for thousands.
+/// Only the placeholders' count comes from the caller, never a value.
+pub(crate) async fn fetch_in<'a, I>(
+    pool: &AnyPool,
+    select: &'static str,
+    ids: &'a [I],
+) -> StoreResult<Vec<sqlx::any::AnyRow>>
+where
+    I: sqlx::Encode<'a, Any> + sqlx::Type<Any> + Sync,
+{
+    let mut rows = Vec::new();
+    for chunk in ids.chunks(500) {
+        let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
+        let sql = format!("{select} ({})", marks.join(", "));
+        let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
+        for id in chunk {
+            query = query.bind(id);
+        }
+        rows.extend(query.fetch_all(pool).await?);
+    }
+    Ok(rows)
 }
 
 /// The default database: a SQLite file in the data directory.

@@ -21,10 +21,7 @@ pub struct CopyDbArgs {
 }
 
 pub fn run(args: CopyDbArgs) -> anyhow::Result<()> {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()?;
-    runtime.block_on(async move {
+    super::runtime()?.block_on(async move {
         let source = Store::connect(&args.from).await?;
         let target = Store::connect(&args.to).await?;
         let report = source.copy_into(&target, args.force).await?;

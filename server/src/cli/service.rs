@@ -92,15 +92,9 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
-fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
-    Ok(tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()?)
-}
-
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
     crate::ops::logging::init(args.config.common.log_format);
-    let rt = runtime()?;
+    let rt = super::runtime()?;
     let result = rt.block_on(async move {
         let shutdown = Shutdown::on_signals()?;
         // The port first: a server that cannot have it stops before it touches anything (a
@@ -137,7 +131,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
     if args.config.workers == 0 {
         anyhow::bail!("--workers must be at least 1 for `poseboard worker`");
     }
-    let rt = runtime()?;
+    let rt = super::runtime()?;
     let result = rt.block_on(async move {
         let shutdown = Shutdown::on_signals()?;
         // A worker only evaluates: it registers no dataset and needs no upload folder.
@@ -166,7 +160,7 @@ async fn join_all(handles: Vec<tokio::task::JoinHandle<()>>) {
 
 pub fn migrate(args: MigrateArgs) -> anyhow::Result<()> {
     crate::ops::logging::init(args.config.log_format);
-    runtime()?.block_on(async move {
+    super::runtime()?.block_on(async move {
         let store = crate::store::Store::connect(&args.config.database_url()).await?;
         store.migrate().await?;
         println!("migrations applied");
@@ -266,7 +260,7 @@ pub enum AdminCommand {
 }
 
 pub fn admin(args: AdminArgs) -> anyhow::Result<()> {
-    runtime()?.block_on(async move {
+    super::runtime()?.block_on(async move {
         std::fs::create_dir_all(&args.config.data_dir)?;
         let store = crate::store::Store::connect(&args.config.database_url()).await?;
         store.migrate().await?;

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -254,6 +254,42 @@ fn reach(client: &Client, server: &str, token: &str) -> Result<()> {
 
 /// Sends the file with its fields; the answer's JSON when accepted.
 fn upload(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) -> Result<Value> {
+    let started = Instant::now();
+    loop {
+        let response = send_file(client, server, args, dataset)?;
+        match unavailable(&response) {
+            Some(wait) if started.elapsed() < PATIENCE => {
+                eprintln!(
+                    "the server's database is unavailable for a moment: sending again in {} s",
+                    wait.as_secs()
+                );
+                std::thread::sleep(wait);
+            }
+            _ => return accepted(client, server, args, dataset, response),
+        }
+    }
+}
+
+/// How long `submit` waits out a server whose database is unavailable (`503`) before giving
+/// up: a restarting or failing-over database is back within this.
+const PATIENCE: Duration = Duration::from_secs(120);
+
+/// The wait a `503` asks for (its `Retry-After`, within 1 to 30 s); `None` for other answers.
+fn unavailable(response: &Response) -> Option<Duration> {
+    (response.status() == reqwest::StatusCode::SERVICE_UNAVAILABLE).then(|| {
+        let secs = response
+            .headers()
+            .get(reqwest::header::RETRY_AFTER)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .unwrap_or(2);
+        Duration::from_secs(secs.clamp(1, 30))
+    })
+}
+
+/// One sending of the file with its fields. Sending again after a `503` is safe: nothing was
+/// stored, and a file the server has already is answered with its submission, not a new one.
+fn send_file(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) -> Result<Response> {
     let size = std::fs::metadata(&args.file)
         .with_context(|| format!("cannot read {}", args.file.display()))?
         .len();
@@ -285,7 +321,17 @@ fn upload(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) -> Re
         .multipart(form)
         .send();
     bar.finish_and_clear();
-    let response = response.with_context(|| format!("cannot upload to {server}"))?;
+    response.with_context(|| format!("cannot upload to {server}"))
+}
+
+/// The upload's answer: its JSON when accepted, else the server's reasons.
+fn accepted(
+    client: &Client,
+    server: &str,
+    args: &SubmitArgs,
+    dataset: &str,
+    response: Response,
+) -> Result<Value> {
     let over_limit = response.status() == reqwest::StatusCode::TOO_MANY_REQUESTS;
     let answered = answer(response);
     match answered {
@@ -318,6 +364,8 @@ fn quota(client: &Client, server: &str, token: &str, dataset: &str) -> Result<St
 fn follow(client: &Client, server: &str, token: &str, id: i64) -> Result<Value> {
     let bar = bar(1000, "{spinner} {msg} {bar:30} {elapsed}");
     bar.enable_steady_tick(Duration::from_millis(120));
+    // Since when the server has answered `503` without a break.
+    let mut unanswered: Option<Instant> = None;
     let outcome = loop {
         let response = client
             .get(format!("{server}/api/v1/submissions/{id}"))
@@ -325,6 +373,15 @@ fn follow(client: &Client, server: &str, token: &str, id: i64) -> Result<Value> 
             .timeout(Duration::from_secs(60))
             .send()
             .with_context(|| format!("cannot reach {server}"));
+        if let Ok(r) = &response
+            && let Some(wait) = unavailable(r)
+            && unanswered.get_or_insert_with(Instant::now).elapsed() < PATIENCE
+        {
+            bar.set_message("the server's database is unavailable for a moment");
+            std::thread::sleep(wait);
+            continue;
+        }
+        unanswered = None;
         let submission = match response.and_then(answer) {
             Ok(s) => s,
             Err(e) => break Err(e),

@@ -16,7 +16,7 @@ use sqlx::{Any, Row, Transaction};
 use super::{Backend, Store, StoreError, StoreResult};
 
 /// Every table of the schema, parents before children (foreign keys are checked as rows go in).
-const TABLES: &[&str] = &[
+pub(super) const TABLES: &[&str] = &[
     "users",
     "datasets",
     "methods",
@@ -217,7 +217,7 @@ impl Store {
     }
 }
 
-fn quoted(identifier: &str) -> String {
+pub(super) fn quoted(identifier: &str) -> String {
     format!("\"{}\"", identifier.replace('"', "\"\""))
 }
 

@@ -14,7 +14,7 @@ use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
 use super::queue::replicates_from;
-use super::{Store, StoreError, StoreResult, parse_column};
+use super::{Store, StoreError, StoreResult, fetch_in, parse_column};
 use crate::domain::{
     BoardProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
 };
@@ -292,29 +292,20 @@ impl Store {
         ids: &[i64],
         coco: bool,
     ) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
-        let table = if coco { "coco_scores" } else { "scores" };
+        let select = if coco {
+            "SELECT id, replicates FROM coco_scores WHERE replicates IS NOT NULL AND id IN"
+        } else {
+            "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN"
+        };
         let mut out = BTreeMap::new();
-        // In slices, so that no statement has more parameters than a database takes.
-        for chunk in ids.chunks(500) {
-            let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
-            // Only the placeholders' count comes from the caller.
-            let sql = format!(
-                "SELECT id, replicates FROM {table} WHERE replicates IS NOT NULL AND id IN ({})",
-                marks.join(", ")
-            );
-            let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
-            for id in chunk {
-                query = query.bind(*id);
-            }
-            for r in query.fetch_all(&self.pool).await? {
-                let bytes: Vec<u8> = r.try_get("replicates")?;
-                let values = replicates_from(&bytes).ok_or(StoreError::Corrupt {
-                    column: "replicates",
-                    value: format!("{} bytes", bytes.len()),
-                })?;
-                if !values.is_empty() {
-                    out.insert(r.try_get("id")?, values);
-                }
+        for r in fetch_in(&self.pool, select, ids).await? {
+            let bytes: Vec<u8> = r.try_get("replicates")?;
+            let values = replicates_from(&bytes).ok_or(StoreError::Corrupt {
+                column: "replicates",
+                value: format!("{} bytes", bytes.len()),
+            })?;
+            if !values.is_empty() {
+                out.insert(r.try_get("id")?, values);
             }
         }
         Ok(out)

@@ -15,7 +15,7 @@ use sqlx::any::AnyRow;
 
 use super::board_version;
 use super::methods::MethodMeta;
-use super::{Backend, Store, StoreError, StoreResult, parse_column};
+use super::{Backend, Store, StoreError, StoreResult, fetch_in, parse_column};
 use crate::clock::now_ms;
 use crate::domain::{
     CocoProtocol, DatasetId, Hardware, MethodId, MethodName, SubmissionId, UserId, Visibility,
@@ -320,28 +320,16 @@ impl Store {
         ids: &[SubmissionId],
     ) -> StoreResult<BTreeMap<SubmissionId, Vec<RedFlag>>> {
         let mut out = BTreeMap::new();
-        // In slices, so that no statement has more parameters than a database takes.
-        for chunk in ids.chunks(500) {
-            let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
-            // Only the placeholders' count comes from the caller.
-            let sql = format!(
-                "SELECT id, preflight_json FROM submissions WHERE id IN ({})",
-                marks.join(", ")
-            );
-            let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
-            for id in chunk {
-                query = query.bind(*id);
-            }
-            for r in query.fetch_all(&self.pool).await? {
-                let text: String = r.try_get("preflight_json")?;
-                let preflight: Preflight =
-                    serde_json::from_str(&text).map_err(|_| StoreError::Corrupt {
-                        column: "preflight_json",
-                        value: text,
-                    })?;
-                if !preflight.red_flags.is_empty() {
-                    out.insert(r.try_get("id")?, preflight.red_flags);
-                }
+        let select = "SELECT id, preflight_json FROM submissions WHERE id IN";
+        for r in fetch_in(&self.pool, select, ids).await? {
+            let text: String = r.try_get("preflight_json")?;
+            let preflight: Preflight =
+                serde_json::from_str(&text).map_err(|_| StoreError::Corrupt {
+                    column: "preflight_json",
+                    value: text,
+                })?;
+            if !preflight.red_flags.is_empty() {
+                out.insert(r.try_get("id")?, preflight.red_flags);
             }
         }
         Ok(out)

@@ -2,10 +2,18 @@
 //! JSON API are rendered from, and the `Retry-After` of a refusal over a limit. One place, so a
 //! page and the API answer the same error alike; internal details (database, I/O) are logged
 //! and never shown to the client.
+//!
+//! A database that cannot be reached for a moment is not a fault of the request nor a bug:
+//! such errors answer `503` with `Retry-After`, and are logged once per outage (the first
+//! failure, then one line when requests succeed again) instead of once per request, which
+//! during an outage would bury the log. The outage is process-wide, as the pool is, so its
+//! count lives in a static rather than in each request's state.
 
 use axum::Json;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use serde::Serialize;
 
 use crate::clock::now_ms;
@@ -35,8 +43,29 @@ pub struct ErrorLink {
     pub href: String,
 }
 
+/// When a client should try again after a `503`, in seconds: a lost connection is replaced at
+/// once, and a restarting database takes a few seconds.
+const RETRY_AFTER_UNAVAILABLE_SECS: i64 = 2;
+
+/// Requests answered `503` since the database last answered; 0 while it answers.
+static UNANSWERED: AtomicU64 = AtomicU64::new(0);
+
+/// Notes a request that succeeded: the end of an outage, if there was one, is logged once.
+pub fn database_answered() {
+    let failed = UNANSWERED.swap(0, Ordering::Relaxed);
+    if failed > 0 {
+        tracing::warn!(
+            requests_answered_503 = failed,
+            "the database answers again after an outage"
+        );
+    }
+}
+
 impl AppError {
     pub fn status(&self) -> StatusCode {
+        if self.is_unavailable() {
+            return StatusCode::SERVICE_UNAVAILABLE;
+        }
         match self {
             AppError::NotFound | AppError::Unknown(_) | AppError::NotHere { .. } => {
                 StatusCode::NOT_FOUND
@@ -58,7 +87,11 @@ impl AppError {
 
     pub fn body(&self) -> ErrorBody {
         let status = self.status();
-        let error = if status.is_server_error() {
+        let error = if status == StatusCode::SERVICE_UNAVAILABLE {
+            "the database is unavailable for a moment: nothing was changed, try again in a few \
+             seconds"
+                .to_string()
+        } else if status.is_server_error() {
             "internal error: the service could not complete the request".to_string()
         } else {
             self.to_string()
@@ -69,6 +102,9 @@ impl AppError {
         };
         let retry_at = match self {
             AppError::TooMany { retry_at, .. } => Some(*retry_at),
+            _ if status == StatusCode::SERVICE_UNAVAILABLE => {
+                Some(now_ms() + RETRY_AFTER_UNAVAILABLE_SECS * 1000)
+            }
             _ => None,
         };
         let limit_bytes = match self {
@@ -98,7 +134,14 @@ impl AppError {
 impl IntoResponse for AppError {
     fn into_response(self) -> Response {
         let status = self.status();
-        if status.is_server_error() {
+        if status == StatusCode::SERVICE_UNAVAILABLE {
+            if UNANSWERED.fetch_add(1, Ordering::Relaxed) == 0 {
+                tracing::error!(
+                    error = %Chain(&self),
+                    "the database is unavailable: answering 503 until it is back"
+                );
+            }
+        } else if status.is_server_error() {
             tracing::error!(error = %Chain(&self), "request failed");
         }
         let body = self.body();
@@ -124,6 +167,7 @@ mod tests {
     use axum::response::IntoResponse;
 
     use super::*;
+    use crate::store::StoreError;
 
     /// What the subscriber under test writes: the log lines.
     #[derive(Clone, Default)]
@@ -175,6 +219,91 @@ mod tests {
         let shown = String::from_utf8_lossy(&bytes);
         assert!(!shown.contains("disk"), "{shown}");
         assert!(!shown.contains("compressing"), "{shown}");
+    }
+
+    /// A database locked by another connection (SQLite busy), as a real SQLite file gives it.
+    fn sqlite_busy() -> StoreError {
+        use sqlx::Connection;
+        let dir = tempfile::tempdir().expect("tmp");
+        let url = format!("sqlite://{}?mode=rwc", dir.path().join("busy.db").display());
+        sqlx::any::install_default_drivers();
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime")
+            .block_on(async {
+                let mut holder = sqlx::AnyConnection::connect(&url).await.expect("sqlite");
+                sqlx::query("CREATE TABLE t (x INTEGER)")
+                    .execute(&mut holder)
+                    .await
+                    .expect("table");
+                sqlx::query("BEGIN EXCLUSIVE")
+                    .execute(&mut holder)
+                    .await
+                    .expect("lock");
+                let mut other = sqlx::AnyConnection::connect(&url).await.expect("sqlite");
+                sqlx::query("PRAGMA busy_timeout = 0")
+                    .execute(&mut other)
+                    .await
+                    .expect("pragma");
+                let refused = sqlx::query("INSERT INTO t VALUES (1)")
+                    .execute(&mut other)
+                    .await
+                    .expect_err("the file is locked");
+                StoreError::from(refused)
+            })
+    }
+
+    #[test]
+    fn an_unavailable_database_answers_503_with_retry_after_and_is_logged_once() {
+        let log = Captured::default();
+        let writer = log.clone();
+        let subscriber = tracing_subscriber::fmt()
+            .with_writer(move || writer.clone())
+            .with_ansi(false)
+            .finish();
+        let busy = sqlite_busy();
+        assert!(busy.is_transient(), "{busy}");
+        let errors = [
+            AppError::Store(busy),
+            AppError::Store(StoreError::Database(sqlx::Error::PoolTimedOut)),
+            AppError::failed(
+                "loading the board",
+                StoreError::Database(sqlx::Error::PoolTimedOut),
+            ),
+        ];
+        let responses: Vec<Response> = tracing::subscriber::with_default(subscriber, || {
+            let responses = errors
+                .into_iter()
+                .map(IntoResponse::into_response)
+                .collect();
+            database_answered();
+            responses
+        });
+        for response in &responses {
+            assert_eq!(response.status(), StatusCode::SERVICE_UNAVAILABLE);
+            assert_eq!(
+                response.headers()[axum::http::header::RETRY_AFTER],
+                RETRY_AFTER_UNAVAILABLE_SECS.to_string()
+            );
+            let body = response.extensions().get::<ErrorBody>().expect("body");
+            assert!(body.error.contains("nothing was changed"), "{}", body.error);
+        }
+        let logged = String::from_utf8(log.0.lock().expect("log buffer").clone()).expect("utf-8");
+        assert_eq!(
+            logged.matches("answering 503 until it is back").count(),
+            1,
+            "{logged}"
+        );
+        assert_eq!(logged.matches("answers again").count(), 1, "{logged}");
+        assert!(logged.contains("requests_answered_503=3"), "{logged}");
+
+        // A database that answers with nonsense is a fault, not an outage.
+        let corrupt = AppError::Store(StoreError::Corrupt {
+            column: "status",
+            value: "??".into(),
+        });
+        assert_eq!(corrupt.status(), StatusCode::INTERNAL_SERVER_ERROR);
     }
 
     #[test]

@@ -14,6 +14,7 @@ pub mod rescoring;
 pub mod snapshots;
 pub mod submissions;
 pub mod targets;
+pub mod unavailable;
 
 use axum::Router;
 use axum::http::{HeaderValue, header};
@@ -91,6 +92,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         // `next` and filters) sent to other sites.
         .layer(every_answer(header::X_CONTENT_TYPE_OPTIONS, "nosniff"))
         .layer(every_answer(header::REFERRER_POLICY, "same-origin"))
+        .layer(axum::middleware::from_fn(unavailable::retry_reads))
         .layer(axum::middleware::from_fn(ops::count_requests))
         .layer(TraceLayer::new_for_http())
         .with_state(app)

@@ -354,6 +354,28 @@ pub fn browser(server: &Server, name: &str) -> (Client, String) {
     (b, csrf_of(&page))
 }
 
+/// A cookie client signed in through the login form as `name`, an account [`account`] made
+/// (its password is the one that function wrote), for pages that show the owner's controls.
+pub fn signed_in(server: &Server, name: &str) -> Client {
+    let b = Client::builder()
+        .cookie_store(true)
+        .timeout(Duration::from_secs(60))
+        .build()
+        .expect("client");
+    let password = format!("{name}-secret-password");
+    let r = b
+        .post(format!("{}/login", server.base))
+        .form(&[
+            ("name", name),
+            ("password", password.as_str()),
+            ("next", "/account"),
+        ])
+        .send()
+        .expect("login");
+    assert!(r.status().is_success(), "login {name}: {}", r.status());
+    b
+}
+
 /// The CSRF token a page's forms carry.
 pub fn csrf_of(page: &str) -> String {
     let needle = "name=\"csrf\" value=\"";

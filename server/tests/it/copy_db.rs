@@ -25,7 +25,7 @@ fn copy_db(from: &str, to: &str, force: bool) -> std::process::Output {
 }
 
 /// Everything a visitor and an administrator see, as JSON, keyed by address.
-fn views(base: &str, admin_token: &str, ids: &[i64]) -> Vec<(String, Value)> {
+pub(crate) fn views(base: &str, admin_token: &str, ids: &[i64]) -> Vec<(String, Value)> {
     let mut paths: Vec<String> = [
         "/api/v1/leaderboards/bop19",
         "/api/v1/leaderboards/eccv18",
@@ -52,7 +52,7 @@ fn views(base: &str, admin_token: &str, ids: &[i64]) -> Vec<(String, Value)> {
 
 /// Gives a new data directory the password files `common::account` looks for (so it does not
 /// create the accounts again) and the uploaded files, as the README says to move them.
-fn move_data_dir(from: &Path, to: &Path) {
+pub(crate) fn move_data_dir(from: &Path, to: &Path) {
     // Only the password files the test wrote: the uploads travel inside the database.
     std::fs::create_dir_all(to).expect("mkdir");
     for entry in std::fs::read_dir(from).expect("data dir") {

@@ -12,6 +12,7 @@
 
 mod accounts;
 mod admin;
+mod backup;
 mod board_cache;
 mod bop24_cli;
 mod browser;
@@ -25,6 +26,7 @@ mod compare_tasks;
 mod connections;
 mod copy_db;
 mod datasets;
+mod db_faults;
 mod demo_start;
 mod deployment;
 mod eval_cli;

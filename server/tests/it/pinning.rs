@@ -9,10 +9,9 @@ use std::time::{Duration, Instant};
 
 use crate::common::{
     BIN, Db, TestDb, both_databases, database_url, fixtures, get_as, post_as, reference_datasets,
-    start, upload_with,
+    signed_in, start, upload_with,
 };
 use crate::publishing::in_metres;
-use reqwest::blocking::Client;
 use serde_json::Value;
 
 /// A `poseboard worker` on the server's database, stopped when this goes away.
@@ -60,21 +59,7 @@ fn only_public_finished_submissions_are_pinned(kind: Db) {
     let held = submit(&in_metres(dir.path()), "public");
 
     // The owner's browser sees the pages with their buttons.
-    let b = Client::builder()
-        .cookie_store(true)
-        .timeout(Duration::from_secs(60))
-        .build()
-        .expect("client");
-    let r = b
-        .post(format!("{base}/login"))
-        .form(&[
-            ("name", "tester"),
-            ("password", "tester-secret-password"),
-            ("next", "/account"),
-        ])
-        .send()
-        .expect("login");
-    assert!(r.status().is_success(), "{kind:?}: {}", r.status());
+    let b = signed_in(&server, "tester");
     let page = |id: i64| {
         b.get(format!("{base}/submissions/{id}"))
             .send()

@@ -10,31 +10,11 @@
 use std::time::Duration;
 
 use crate::common::{
-    Db, TestDb, client, fixtures, get_as, post_as, reference_datasets, start, upload_with,
+    Db, TestDb, client, fixtures, get_as, post_as, reference_datasets, signed_in, start,
+    upload_with,
 };
-use reqwest::blocking::{Client, multipart};
+use reqwest::blocking::multipart;
 use serde_json::{Value, json};
-
-/// A browser signed in as the harness's account `tester` (its password is the one
-/// `common::account` wrote).
-fn signed_in_as_tester(base: &str) -> Client {
-    let b = Client::builder()
-        .cookie_store(true)
-        .timeout(Duration::from_secs(60))
-        .build()
-        .expect("client");
-    let r = b
-        .post(format!("{base}/login"))
-        .form(&[
-            ("name", "tester"),
-            ("password", "tester-secret-password"),
-            ("next", "/account"),
-        ])
-        .send()
-        .expect("login");
-    assert!(r.status().is_success(), "login: {}", r.status());
-    b
-}
 
 #[test]
 fn the_first_hour_has_no_rough_edges() {
@@ -82,7 +62,7 @@ fn the_first_hour_has_no_rough_edges() {
     }
 
     // The owner's page of a finished submission: scores first, no progress bar, a red delete.
-    let b = signed_in_as_tester(base);
+    let b = signed_in(&server, "tester");
     let page = b
         .get(format!("{base}/submissions/{id}"))
         .send()

@@ -6,7 +6,7 @@ use askama_web::WebTemplate;
 use axum::Router;
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{DefaultBodyLimit, Form, Multipart, Path, Query, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::http::{HeaderMap, StatusCode, header};
 use axum::middleware::from_fn;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
@@ -536,7 +536,13 @@ pub fn error_page(response: Response) -> Response {
                 status: status.as_u16(),
                 body: body.clone(),
             };
-            (status, page).into_response()
+            // When to try again (a limit, an unavailable database) holds for the page too.
+            let retry_after = response.headers().get(header::RETRY_AFTER).cloned();
+            let mut page = (status, page).into_response();
+            if let Some(v) = retry_after {
+                page.headers_mut().insert(header::RETRY_AFTER, v);
+            }
+            page
         }
         _ => response,
     }
