@@ -250,8 +250,12 @@ pub struct SubmissionView {
     /// While queued or running, in plain words: the place in the queue or the estimates
     /// done, and when the scores are expected.
     pub progress_text: Option<String>,
-    /// Seconds until the scores are expected, from the speed measured on this server.
+    /// Seconds until the scores are expected, from the speed measured on this server; none
+    /// while no worker runs.
     pub eta_seconds: Option<f64>,
+    /// Queued or running, but no evaluation worker has been seen for longer than a lease: the
+    /// submission waits, safe, for one to start.
+    pub no_worker: bool,
     pub preflight: Preflight,
     /// The pre-flight's expectation at upload, in plain words.
     pub preflight_text: String,
@@ -330,6 +334,7 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
     let manages = viewer.can_see(submission.owner_id);
     let now = now_ms();
     let progress_text = match (submission.status, &details.queue, details.eta_seconds) {
+        _ if details.no_worker => Some(submission_details::NO_WORKER.to_string()),
         (Status::Queued, Some(place), Some(eta)) => Some(format!(
             "{}; scores expected {}",
             wording::queue_place(place.queued_ahead, place.running),
@@ -366,6 +371,7 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
         publication: publishing::state(&submission),
         progress_text,
         eta_seconds: details.eta_seconds,
+        no_worker: details.no_worker,
         owner: manages.then(|| OwnerLinks::of(&submission)),
         submission,
         scores: details
