@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SubmissionId};
+use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SnapshotId, SubmissionId};
 use crate::error::AppResult;
 use crate::preflight::Preflight;
 use crate::service::leaderboard::{self, Curves};
@@ -100,7 +100,8 @@ impl BoardFilter {
         self.with("", "")
     }
 
-    /// The query string that keeps this filter but changes one key (for links on the page).
+    /// The query string that keeps this filter but changes one key (for links on the page,
+    /// after their path: empty when nothing is left, so that no link ends in a bare `?`).
     pub fn with(&self, key: &str, value: &str) -> String {
         let mut pairs: Vec<(&str, String)> = Vec::new();
         for (k, v) in [
@@ -123,10 +124,28 @@ impl BoardFilter {
             .map(|(k, v)| format!("{k}={}", urlencode(v)))
             .collect();
         if q.is_empty() {
-            "?".to_string()
+            String::new()
         } else {
             format!("?{}", q.join("&"))
         }
+    }
+}
+
+/// The page of one board of snapshot `id` (its JSON twin is the same under `/api/v1`).
+pub fn snapshot_board_url(id: SnapshotId, protocol: BoardProtocol, dataset: &str) -> String {
+    format!("/snapshots/{id}{}", board_query(protocol, dataset))
+}
+
+/// The query naming one board: `?protocol=P` and, for one dataset's board, `&dataset=D`.
+pub fn board_query(protocol: BoardProtocol, dataset: &str) -> String {
+    if dataset.is_empty() {
+        format!("?protocol={}", protocol.as_str())
+    } else {
+        format!(
+            "?protocol={}&dataset={}",
+            protocol.as_str(),
+            urlencode(dataset)
+        )
     }
 }
 

@@ -17,7 +17,7 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{
-    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SubmissionId,
+    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SnapshotId, SubmissionId,
     TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
@@ -149,6 +149,11 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 pub(crate) struct LeaderboardPage {
     pub(crate) board: Leaderboard,
     pub(crate) protocols: [BoardProtocol; 4],
+    /// The snapshot this page is kept in, if it is: its links then lead to the snapshot's own
+    /// stored boards and exports, and what a snapshot did not store (other orders, the
+    /// filters, the live pages of methods and submissions) is not offered, so that a reader
+    /// of a cited board never lands on today's numbers unawares.
+    pub(crate) snapshot: Option<SnapshotId>,
 }
 
 impl LeaderboardPage {
@@ -161,7 +166,77 @@ impl LeaderboardPage {
         Ok(LeaderboardPage {
             board: views::leaderboard(app, protocol, q).await?,
             protocols: BoardProtocol::ALL,
+            snapshot: None,
         })
+    }
+
+    /// The name of this board's dataset; empty for the board of all datasets.
+    fn dataset_name(&self) -> &str {
+        self.board.dataset.as_ref().map_or("", |d| d.name.as_str())
+    }
+
+    /// The board of `protocol` (a tab), keeping the dataset (and live, the filters).
+    pub(crate) fn protocol_href(&self, protocol: &BoardProtocol) -> String {
+        match self.snapshot {
+            Some(id) => views::snapshot_board_url(id, *protocol, self.dataset_name()),
+            None => format!(
+                "/leaderboards/{}{}",
+                protocol.as_str(),
+                self.board.filter.with("sort", "")
+            ),
+        }
+    }
+
+    /// This protocol's board of dataset `name` (empty: all datasets).
+    pub(crate) fn dataset_href(&self, name: &str) -> String {
+        match self.snapshot {
+            Some(id) => views::snapshot_board_url(id, self.board.protocol, name),
+            None => self.live_href(self.board.filter.with("dataset", name)),
+        }
+    }
+
+    /// This board ordered by `key`; none in a snapshot, which keeps one order.
+    pub(crate) fn sort_href(&self, key: &str) -> Option<String> {
+        self.snapshot
+            .is_none()
+            .then(|| self.live_href(self.board.filter.with("sort", key)))
+    }
+
+    /// The live board with `query`.
+    pub(crate) fn live_href(&self, query: impl AsRef<str>) -> String {
+        let query = query.as_ref();
+        format!("/leaderboards/{}{query}", self.board.protocol.as_str())
+    }
+
+    /// This board's JSON twin.
+    pub(crate) fn json_href(&self) -> String {
+        match self.snapshot {
+            Some(id) => format!(
+                "/api/v1{}",
+                views::snapshot_board_url(id, self.board.protocol, self.dataset_name())
+            ),
+            None => format!(
+                "/api/v1{}",
+                self.live_href(self.board.filter.with("sort", ""))
+            ),
+        }
+    }
+
+    /// This board's export as `extension` (`csv`, `json`, `tex`): a snapshot's are those it
+    /// kept (CSV and JSON).
+    pub(crate) fn export_href(&self, extension: &str) -> Option<String> {
+        match self.snapshot {
+            Some(_) if extension == "tex" => None,
+            Some(id) => Some(format!(
+                "/snapshots/{id}/export.{extension}{}",
+                views::board_query(self.board.protocol, self.dataset_name())
+            )),
+            None => Some(format!(
+                "/leaderboards/{}/export.{extension}{}",
+                self.board.protocol.as_str(),
+                self.board.filter.query()
+            )),
+        }
     }
 }
 
