@@ -117,37 +117,59 @@ fn remaining(s: &SubmissionRow) -> i64 {
     }
 }
 
-/// One of an owner's submissions, with its headline scores.
+/// A submission with its headline scores: one of an owner's, or of a method's.
+#[derive(Clone, Debug, Serialize)]
 pub struct Owned {
+    #[serde(flatten)]
     pub submission: SubmissionRow,
     /// Per protocol, the headline score (AR for bop19, recall for eccv18).
     pub scores: BTreeMap<ProtocolName, f64>,
     /// A 2D task's AP, once scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub ap: Option<f64>,
+}
+
+impl Owned {
+    /// The headline score under `protocol`, once evaluated.
+    pub fn score(&self, protocol: ProtocolName) -> Option<f64> {
+        self.scores.get(&protocol).copied()
+    }
 }
 
 /// Every submission of `user`, private ones included, newest first.
 pub async fn of_owner(app: &App, user: &User) -> AppResult<Vec<Owned>> {
     let rows = app.store.submissions_of_owner(user.id).await?;
-    let mut scores: BTreeMap<SubmissionId, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
-    for sc in app.store.scores_of_owner(user.id).await? {
-        scores
+    let scores = app.store.scores_of_owner(user.id).await?;
+    let aps = app.store.coco_scores_of_owner(user.id).await?;
+    Ok(scored(rows, scores, aps))
+}
+
+/// `rows`, submissions of method `id` (those the reader may see), with their headline scores.
+pub async fn of_method(app: &App, id: MethodId, rows: Vec<SubmissionRow>) -> AppResult<Vec<Owned>> {
+    let scores = app.store.scores_of_method(id).await?;
+    let aps = app.store.coco_scores_of_method(id).await?;
+    Ok(scored(rows, scores, aps))
+}
+
+/// Each of `rows` with its scores among `scores` and `aps`.
+fn scored(
+    rows: Vec<SubmissionRow>,
+    scores: Vec<ScoreRow>,
+    aps: Vec<(SubmissionId, f64)>,
+) -> Vec<Owned> {
+    let mut by_submission: BTreeMap<SubmissionId, BTreeMap<ProtocolName, f64>> = BTreeMap::new();
+    for sc in scores {
+        by_submission
             .entry(sc.submission_id)
             .or_default()
             .insert(sc.protocol, sc.score);
     }
-    let mut aps: BTreeMap<SubmissionId, f64> = app
-        .store
-        .coco_scores_of_owner(user.id)
-        .await?
-        .into_iter()
-        .collect();
-    Ok(rows
-        .into_iter()
+    let mut aps: BTreeMap<SubmissionId, f64> = aps.into_iter().collect();
+    rows.into_iter()
         .map(|s| Owned {
-            scores: scores.remove(&s.id).unwrap_or_default(),
+            scores: by_submission.remove(&s.id).unwrap_or_default(),
             ap: aps.remove(&s.id),
             submission: s,
         })
-        .collect())
+        .collect()
 }

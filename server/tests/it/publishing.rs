@@ -46,7 +46,7 @@ fn cli_eval(dataset: &Path, results: &Path, protocol: &str) -> (Value, Value) {
 }
 
 /// Waits until the owner (`token`) sees submission `id` done; returns its JSON.
-fn wait_owner(server: &Server, token: &str, id: i64) -> Value {
+pub(crate) fn wait_owner(server: &Server, token: &str, id: i64) -> Value {
     let start = Instant::now();
     loop {
         let s: Value = get_as(&format!("{}/api/v1/submissions/{id}", server.base), token)

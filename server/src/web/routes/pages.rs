@@ -21,12 +21,14 @@ use crate::domain::{
     TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
+use crate::service::leaderboard::Standing;
+use crate::service::submission_details::Owned;
 use crate::service::submissions;
 use crate::service::submissions::quota::{self, Quota};
-use crate::service::{catalogue, methods, publishing, visibility};
+use crate::service::{catalogue, methods, publishing};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
-use crate::store::submissions::{Fault, SubmissionRow};
+use crate::store::submissions::Fault;
 use crate::web::auth::Viewer;
 use crate::web::error::ErrorBody;
 use crate::web::routes::boards;
@@ -316,7 +318,12 @@ async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<Data
 #[template(path = "method.html")]
 struct MethodPage {
     method: MethodRow,
-    submissions: Vec<SubmissionRow>,
+    /// Where it stands on every board it has a public entry on.
+    standings: Vec<Standing>,
+    /// The submissions the reader may see (the owner: all), newest first, with their scores.
+    submissions: Vec<Owned>,
+    /// The reader is its owner (or an administrator): private and held ones are listed too.
+    owner_view: bool,
     /// For its owner's (or an administrator's) browser: the CSRF token of the edit form.
     edit_csrf: Option<String>,
     model_scopes: &'static [ModelScope],
@@ -324,21 +331,44 @@ struct MethodPage {
     training: &'static [TrainingData],
 }
 
+impl MethodPage {
+    /// The dataset's board of the task `standing` is on.
+    fn board_url(&self, standing: &Standing) -> String {
+        format!(
+            "/leaderboards/{}?dataset={}",
+            standing.protocol.as_str(),
+            views::urlencode(&standing.dataset)
+        )
+    }
+
+    /// What the score of `standing` is, as its board names it.
+    fn score_label(&self, standing: &Standing) -> &'static str {
+        match standing.protocol {
+            BoardProtocol::Pose(ProtocolName::Bop19) => "AR",
+            BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
+            BoardProtocol::Coco(_) => "AP",
+        }
+    }
+}
+
 async fn method(
     State(app): State<AppState>,
     viewer: Viewer,
     Path(id): Path<MethodId>,
 ) -> AppResult<MethodPage> {
-    let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
+    let home = methods::home(&app, id, viewer.user.as_ref()).await?;
+    let method = home.method;
     let may_edit = viewer.can_see(method.owner_id);
     Ok(MethodPage {
+        standings: home.standings,
+        submissions: home.submissions,
+        owner_view: may_edit,
         edit_csrf: viewer
             .session
             .as_ref()
             .filter(|_| may_edit)
             .map(|s| s.csrf_token.clone()),
         method,
-        submissions,
         model_scopes: ModelScope::ALL,
         modalities: Modality::ALL,
         training: TrainingData::ALL,
