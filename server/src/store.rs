@@ -33,6 +33,7 @@ pub mod rescoring;
 pub mod scores;
 pub mod snapshots;
 pub mod submissions;
+pub mod worker_beats;
 
 static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/sqlite");
 static POSTGRES_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/postgres");

@@ -8,6 +8,8 @@
 //! that dies (crash, SIGKILL, restart) stops renewing; once its lease expires any worker, in
 //! this process or on another machine sharing the PostgreSQL database, takes the job up again.
 //! An idle worker re-scores submissions an older evaluator scored, under a lease of its own.
+//! Every poll of the queue and every renewal of a lease is also a beat of the worker (see
+//! [`crate::store::worker_beats`]), so that the pages can tell when no worker runs at all.
 //!
 //! Split by concern: `pool` starts the workers and runs the claim loop, `job` runs one
 //! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding

@@ -8,6 +8,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::app::App;
+use crate::clock::now_ms;
 use crate::error::Chain;
 
 /// A database that does not answer within this is taken to be unreachable (the pool would
@@ -74,13 +75,21 @@ pub async fn readiness(app: &App) -> Readiness {
     }
 }
 
-/// The metrics exposition, with the queue depth read from the database first (kept at its
-/// last value, and the failure logged, when the database does not answer).
+/// The metrics exposition, with the queue depth and the age of the newest worker beat read
+/// from the database first (each kept at its last value, and the failure logged, when the
+/// database does not answer).
 pub async fn metrics_text(app: &App) -> String {
     match tokio::time::timeout(DATABASE_TIMEOUT, app.store.queue_depth()).await {
         Ok(Ok(counts)) => crate::ops::metrics::set_queue_depth(&counts),
         Ok(Err(e)) => tracing::warn!(error = %e, "queue depth not read"),
         Err(_) => tracing::warn!("queue depth not read: the database did not answer"),
+    }
+    match tokio::time::timeout(DATABASE_TIMEOUT, app.store.newest_beat()).await {
+        Ok(Ok(newest)) => crate::ops::metrics::set_heartbeat_age(
+            newest.map(|at| (now_ms() - at).max(0) as f64 / 1000.0),
+        ),
+        Ok(Err(e)) => tracing::warn!(error = %e, "worker beats not read"),
+        Err(_) => tracing::warn!("worker beats not read: the database did not answer"),
     }
     crate::ops::metrics::render()
 }

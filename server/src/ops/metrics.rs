@@ -1,7 +1,8 @@
 //! The Prometheus metrics of this process: one recorder per process, rendered as text by
 //! `GET /metrics` (of `serve`, or of a `worker` given `--metrics-bind`). Counters live in the
 //! process and start at zero with it; Prometheus' `rate()` and `increase()` are made for that.
-//! The queue depth is the database's truth, so it is read at scrape time rather than counted.
+//! The queue depth and the age of the newest worker beat are the database's truth, so they are
+//! read at scrape time rather than counted.
 
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -20,6 +21,7 @@ const JOBS_RETRIED: &str = "poseboard_jobs_retried_total";
 const JOB_DURATION: &str = "poseboard_job_duration_seconds";
 const ESTIMATES: &str = "poseboard_estimates_evaluated_total";
 const QUEUE_DEPTH: &str = "poseboard_queue_depth";
+const HEARTBEAT_AGE: &str = "poseboard_worker_heartbeat_age_seconds";
 const HTTP_REQUESTS: &str = "poseboard_http_requests_total";
 const HTTP_DURATION: &str = "poseboard_http_request_duration_seconds";
 
@@ -75,6 +77,12 @@ pub fn install() -> Result<(), BuildError> {
         "Pose estimates evaluated (summed over protocols); rate() gives estimates per second"
     );
     describe_gauge!(QUEUE_DEPTH, "Submissions per state, read from the database");
+    describe_gauge!(
+        HEARTBEAT_AGE,
+        Unit::Seconds,
+        "Age of the newest beat of any evaluation worker sharing the database (+Inf: none ever \
+         beat); above the lease, no worker is running and queued submissions wait"
+    );
     describe_counter!(HTTP_REQUESTS, "HTTP requests by route template and status");
     describe_histogram!(HTTP_DURATION, Unit::Seconds, "HTTP request latency");
     for name in [
@@ -106,6 +114,12 @@ pub fn set_queue_depth(counts: &[(Status, i64)]) {
             .map_or(0, |(_, n)| *n);
         gauge!(QUEUE_DEPTH, "state" => state.as_str()).set(n as f64);
     }
+}
+
+/// Records the age in seconds of the newest worker beat; `None` (no worker ever beat) is
+/// +Inf, so that an alert on the age fires for a service that never had a worker.
+pub fn set_heartbeat_age(seconds: Option<f64>) {
+    gauge!(HEARTBEAT_AGE).set(seconds.unwrap_or(f64::INFINITY));
 }
 
 /// A job this process's worker has claimed, timed until its outcome is stored.

@@ -273,6 +273,77 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     })
 }
 
+/// Where a method stands on one dataset's board of one task.
+#[derive(Clone, Debug, Serialize)]
+pub struct Standing {
+    pub protocol: BoardProtocol,
+    pub dataset: String,
+    /// Its rank on the dataset's board (shared by scores that read the same).
+    pub rank: Option<usize>,
+    /// How many methods that board ranks.
+    pub ranked: usize,
+    /// The headline score of its entry (AR, recall or AP).
+    pub score: f64,
+    /// Its entry: the best public finished submission, or the one pinned.
+    pub submission_id: SubmissionId,
+    pub pinned: bool,
+}
+
+/// Where method `id` stands on every board (each task, each dataset) it has a public entry
+/// on, ranked as that dataset's board ranks it; boards in [`BoardProtocol::ALL`]'s order, then
+/// datasets by name.
+pub async fn standings(app: &App, id: MethodId) -> AppResult<Vec<Standing>> {
+    let datasets = app.store.datasets().await?;
+    let mut out = Vec::new();
+    for protocol in BoardProtocol::ALL {
+        let entries: Vec<Entry> = match protocol {
+            BoardProtocol::Pose(p) => app
+                .store
+                .leaderboard(p, None)
+                .await?
+                .into_iter()
+                .map(pose_entry)
+                .collect(),
+            BoardProtocol::Coco(t) => app
+                .store
+                .coco_leaderboard(t, None)
+                .await?
+                .iter()
+                .map(coco_entry)
+                .collect(),
+        };
+        for dataset in &datasets {
+            if !entries
+                .iter()
+                .any(|e| e.method_id == id && e.dataset_id == dataset.id)
+            {
+                continue;
+            }
+            let here: Vec<Entry> = entries
+                .iter()
+                .filter(|e| e.dataset_id == dataset.id)
+                .cloned()
+                .collect();
+            let (mut rows, _) = ranking::rows(&here, std::slice::from_ref(dataset), false);
+            ranking::rank(&mut rows);
+            let ranked = rows.iter().filter(|r| r.rank.is_some()).count();
+            let mine = rows.iter().find(|r| r.method_id == id);
+            if let Some((row, cell)) = mine.and_then(|r| Some((r, r.scores.get(&dataset.name)?))) {
+                out.push(Standing {
+                    protocol,
+                    dataset: dataset.name.clone(),
+                    rank: row.rank,
+                    ranked,
+                    score: cell.score,
+                    submission_id: cell.submission_id,
+                    pinned: cell.pinned,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// The rendered board of `key`: kept while the boards stand (see [`crate::board_cache`]),
 /// otherwise rendered by `render`.
 pub async fn cached<F, Fut>(app: &App, key: BoardKey, render: F) -> AppResult<Arc<Rendered>>

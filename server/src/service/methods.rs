@@ -1,13 +1,38 @@
-//! What a method's owner does with it: state its details, and choose which submission is its
-//! entry on a dataset. Only the owner (or an administrator) may; anyone else who can see the
-//! method is refused (403), and a method or submission they cannot see answers as missing.
+//! A method's home, and what its owner does with it. Its page (and JSON twin) gathers where
+//! the method stands on every board and its submissions over time, as [`visibility`] lets the
+//! reader see them. The owner (or an administrator) states its details and chooses which
+//! submission is its entry on a dataset; anyone else who can see the method is refused (403),
+//! and a method or submission they cannot see answers as missing.
 
 use crate::app::App;
 use crate::domain::{MethodForm, MethodId, SubmissionId, UserId};
 use crate::error::{AppError, AppResult};
+use crate::service::leaderboard::{self, Standing};
+use crate::service::submission_details::{self, Owned};
+use crate::service::visibility;
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
 use crate::store::submissions::{Status, SubmissionRow};
+
+/// What a method's page shows.
+pub struct MethodHome {
+    pub method: MethodRow,
+    /// Its public entries' scores and ranks, per board and dataset.
+    pub standings: Vec<Standing>,
+    /// Its submissions the reader may see, newest first, with their headline scores.
+    pub submissions: Vec<Owned>,
+}
+
+/// Method `id` as `reader` may see it (see [`visibility::method`]): to its owner even before
+/// anything of it is public.
+pub async fn home(app: &App, id: MethodId, reader: Option<&User>) -> AppResult<MethodHome> {
+    let (method, rows) = visibility::method(app, id, reader).await?;
+    Ok(MethodHome {
+        standings: leaderboard::standings(app, id).await?,
+        submissions: submission_details::of_method(app, id, rows).await?,
+        method,
+    })
+}
 
 fn may_change(user: &User, owner: Option<UserId>) -> bool {
     user.is_admin || owner == Some(user.id)

@@ -1,6 +1,6 @@
 //! Dated snapshots of every leaderboard, for papers to cite. Taking one is a use case with a
 //! rule on each side of the rendering: which boards a snapshot holds (each protocol, over all
-//! datasets and over each one, as HTML and JSON), that it is shown nowhere until every board is
+//! datasets and over each one, as HTML and JSON, with the CSV and JSON exports), that it is shown nowhere until every board is
 //! kept and is discarded if one fails, and that the administrator's act is audited. The
 //! rendering itself is the web layer's (the very templates and JSON of the live boards, so a
 //! snapshot reads like the page it froze), so the web layer hands its renderer in as a
@@ -29,10 +29,13 @@ pub struct Board<'a> {
     pub dataset: &'a str,
 }
 
-/// A board rendered both ways.
+/// A board rendered every way a snapshot keeps it: the page, its JSON twin, and the exports
+/// the page offers (so that they download the snapshot's rows, not today's).
 pub struct Rendered {
     pub html: Vec<u8>,
     pub json: Vec<u8>,
+    pub csv: Vec<u8>,
+    pub export_json: Vec<u8>,
 }
 
 /// What renders the boards of a snapshot: the web layer.
@@ -66,7 +69,7 @@ async fn render_every_board(
 ) -> AppResult<Vec<SnapshotBoard>> {
     let mut datasets = vec![String::new()];
     datasets.extend(app.store.datasets().await?.into_iter().map(|d| d.name));
-    let mut kept = Vec::with_capacity(2 * BoardProtocol::ALL.len() * datasets.len());
+    let mut kept = Vec::with_capacity(4 * BoardProtocol::ALL.len() * datasets.len());
     for protocol in BoardProtocol::ALL {
         for dataset in &datasets {
             let board = Board {
@@ -79,6 +82,8 @@ async fn render_every_board(
             for (format, bytes) in [
                 (BoardFormat::Html, rendered.html),
                 (BoardFormat::Json, rendered.json),
+                (BoardFormat::Csv, rendered.csv),
+                (BoardFormat::ExportJson, rendered.export_json),
             ] {
                 kept.push(SnapshotBoard {
                     protocol,

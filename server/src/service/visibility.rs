@@ -31,16 +31,21 @@ pub async fn submission(
     Ok(submission)
 }
 
-/// A method `reader` may see, with its public submissions (all the method's page and its JSON
-/// list, whoever asks); otherwise missing.
+/// A method `reader` may see, with the submissions of it they may see (newest first): every
+/// one for its owner and the administrators, the public ones for everyone else; otherwise
+/// missing.
 pub async fn method(
     app: &App,
     id: MethodId,
     reader: Option<&User>,
 ) -> AppResult<(MethodRow, Vec<SubmissionRow>)> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
+    if sees_private(reader, method.owner_id) {
+        let submissions = app.store.submissions_of_method(id).await?;
+        return Ok((method, submissions));
+    }
     let submissions = app.store.public_submissions_of_method(id).await?;
-    if submissions.is_empty() && !sees_private(reader, method.owner_id) {
+    if submissions.is_empty() {
         return Err(AppError::NotFound);
     }
     Ok((method, submissions))

@@ -125,14 +125,32 @@ impl Store {
         &self,
         owner: UserId,
     ) -> StoreResult<Vec<(SubmissionId, f64)>> {
-        let rows = sqlx::query(
+        self.coco_scores_where("s.owner_id", owner.get()).await
+    }
+
+    /// The AP of every scored 2D submission of method `id`, private ones included.
+    pub async fn coco_scores_of_method(
+        &self,
+        id: MethodId,
+    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
+        self.coco_scores_where("s.method_id", id.get()).await
+    }
+
+    /// The AP of the scored 2D submissions whose `column` is `value`, by submission.
+    async fn coco_scores_where(
+        &self,
+        column: &'static str,
+        value: i64,
+    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
+        let sql = format!(
             "SELECT c.submission_id, c.ap FROM coco_scores c \
-             JOIN submissions s ON s.id = c.submission_id WHERE s.owner_id = $1 \
-             ORDER BY c.submission_id",
-        )
-        .bind(owner)
-        .fetch_all(&self.pool)
-        .await?;
+             JOIN submissions s ON s.id = c.submission_id WHERE {column} = $1 \
+             ORDER BY c.submission_id"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(value)
+            .fetch_all(&self.pool)
+            .await?;
         rows.iter()
             .map(|r| Ok((r.try_get("submission_id")?, r.try_get("ap")?)))
             .collect()

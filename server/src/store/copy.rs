@@ -35,6 +35,7 @@ pub(super) const TABLES: &[&str] = &[
     "snapshots",
     "snapshot_boards",
     "score_changes",
+    "worker_beats",
 ];
 
 /// Tables the migrations create and seed themselves, holding no data of their own: not copied.

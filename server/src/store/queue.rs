@@ -51,7 +51,7 @@ impl Store {
     /// Takes the oldest queued submission, or one whose worker's lease expired, for `worker`
     /// for `lease_ms`, leaving those of the datasets in `skip` (which this worker cannot serve)
     /// to others. Submissions that failed `max_attempts` times for the service's reasons are
-    /// marked failed instead of being retried forever.
+    /// marked failed instead of being retried forever. Every poll is a beat of `worker`.
     pub async fn claim(
         &self,
         worker: &str,
@@ -60,6 +60,7 @@ impl Store {
         skip: &[DatasetId],
     ) -> StoreResult<Option<SubmissionRow>> {
         let now = now_ms();
+        self.beat(worker, now).await?;
         sqlx::query(
             "UPDATE submissions SET status = 'failed', fault = 'service', finished_at = $1, \
              error = 'the evaluation was interrupted too many times' \
@@ -86,7 +87,8 @@ impl Store {
     }
 
     /// Extends the lease and records progress (the fraction done, and the estimate
-    /// evaluations done); false when the job is no longer this worker's.
+    /// evaluations done); false when the job is no longer this worker's. A beat of `worker`
+    /// too: a worker busy with a long job polls no queue.
     pub async fn heartbeat(
         &self,
         id: SubmissionId,
@@ -95,11 +97,13 @@ impl Store {
         progress: f64,
         work_done: i64,
     ) -> StoreResult<bool> {
+        let now = now_ms();
+        self.beat(worker, now).await?;
         let done = sqlx::query(
             "UPDATE submissions SET lease_until = $1, progress = $2, work_done = $3 \
              WHERE id = $4 AND worker = $5 AND status = 'running'",
         )
-        .bind(now_ms() + lease_ms)
+        .bind(now + lease_ms)
         .bind(progress)
         .bind(work_done)
         .bind(id)

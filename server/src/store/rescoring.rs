@@ -175,18 +175,20 @@ impl Store {
     }
 
     /// Extends the re-scoring lease; false when it is no longer this worker's (taken over, or
-    /// the submission was re-run or deleted meanwhile).
+    /// the submission was re-run or deleted meanwhile). A beat of `worker` too.
     pub async fn renew_rescore(
         &self,
         id: SubmissionId,
         worker: &str,
         lease_ms: i64,
     ) -> StoreResult<bool> {
+        let now = now_ms();
+        self.beat(worker, now).await?;
         let done = sqlx::query(
             "UPDATE submissions SET rescore_lease_until = $1 \
              WHERE id = $2 AND rescore_worker = $3 AND rescore = 1 AND status = 'done'",
         )
-        .bind(now_ms() + lease_ms)
+        .bind(now + lease_ms)
         .bind(id)
         .bind(worker)
         .execute(&self.pool)

@@ -184,12 +184,29 @@ fn score(row: &AnyRow) -> StoreResult<ScoreRow> {
 impl Store {
     /// The headline scores of every submission of `owner`, by submission, then protocol.
     pub async fn scores_of_owner(&self, owner: UserId) -> StoreResult<Vec<ScoreRow>> {
+        self.scores_of_submissions_where("s.owner_id", owner.get())
+            .await
+    }
+
+    /// The headline scores of every submission of method `id`, private ones included, by
+    /// submission, then protocol.
+    pub async fn scores_of_method(&self, id: MethodId) -> StoreResult<Vec<ScoreRow>> {
+        self.scores_of_submissions_where("s.method_id", id.get())
+            .await
+    }
+
+    /// The scores of the submissions whose `column` is `value`.
+    async fn scores_of_submissions_where(
+        &self,
+        column: &'static str,
+        value: i64,
+    ) -> StoreResult<Vec<ScoreRow>> {
         let sql = format!(
             "SELECT {SCORE_COLUMNS} FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
-             WHERE s.owner_id = $1 ORDER BY sc.submission_id, sc.protocol"
+             WHERE {column} = $1 ORDER BY sc.submission_id, sc.protocol"
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
-            .bind(owner)
+            .bind(value)
             .fetch_all(&self.pool)
             .await?;
         rows.iter().map(score).collect()

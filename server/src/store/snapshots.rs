@@ -8,11 +8,15 @@ use sqlx::Row;
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{BoardProtocol, SnapshotId, UserId};
 
-/// Which rendering of a board a snapshot holds.
+/// Which rendering of a board a snapshot holds: the page and its JSON twin, and the exports
+/// (CSV, JSON) its page offers. Snapshots taken before the exports were kept hold the first
+/// two only.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BoardFormat {
     Html,
     Json,
+    Csv,
+    ExportJson,
 }
 
 impl BoardFormat {
@@ -20,6 +24,8 @@ impl BoardFormat {
         match self {
             BoardFormat::Html => "html",
             BoardFormat::Json => "json",
+            BoardFormat::Csv => "csv",
+            BoardFormat::ExportJson => "export.json",
         }
     }
 }
@@ -40,7 +46,7 @@ pub struct SnapshotRow {
     pub taken_at: i64,
     /// The administrator who took it.
     pub taken_by: String,
-    /// The boards it holds, as (protocol, dataset; empty for all datasets), each in both formats.
+    /// The boards it holds, as (protocol, dataset; empty for all datasets), each in every format.
     pub boards: Vec<(BoardProtocol, String)>,
 }
 

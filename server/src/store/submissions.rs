@@ -426,6 +426,20 @@ impl Store {
         rows.iter().map(submission).collect()
     }
 
+    /// Every submission of a method, private, held and hidden ones included, newest first
+    /// (what its owner sees on its page).
+    pub async fn submissions_of_method(
+        &self,
+        method_id: MethodId,
+    ) -> StoreResult<Vec<SubmissionRow>> {
+        let sql = format!("SELECT {SUBMISSION_COLUMNS} WHERE s.method_id = $1 ORDER BY s.id DESC");
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(method_id)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(submission).collect()
+    }
+
     /// Public submissions, newest first.
     pub async fn recent_public_submissions(&self, limit: i64) -> StoreResult<Vec<SubmissionRow>> {
         let sql = format!(

@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SubmissionId};
+use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SnapshotId, SubmissionId};
 use crate::error::AppResult;
 use crate::preflight::Preflight;
 use crate::service::leaderboard::{self, Curves};
@@ -100,7 +100,8 @@ impl BoardFilter {
         self.with("", "")
     }
 
-    /// The query string that keeps this filter but changes one key (for links on the page).
+    /// The query string that keeps this filter but changes one key (for links on the page,
+    /// after their path: empty when nothing is left, so that no link ends in a bare `?`).
     pub fn with(&self, key: &str, value: &str) -> String {
         let mut pairs: Vec<(&str, String)> = Vec::new();
         for (k, v) in [
@@ -123,10 +124,28 @@ impl BoardFilter {
             .map(|(k, v)| format!("{k}={}", urlencode(v)))
             .collect();
         if q.is_empty() {
-            "?".to_string()
+            String::new()
         } else {
             format!("?{}", q.join("&"))
         }
+    }
+}
+
+/// The page of one board of snapshot `id` (its JSON twin is the same under `/api/v1`).
+pub fn snapshot_board_url(id: SnapshotId, protocol: BoardProtocol, dataset: &str) -> String {
+    format!("/snapshots/{id}{}", board_query(protocol, dataset))
+}
+
+/// The query naming one board: `?protocol=P` and, for one dataset's board, `&dataset=D`.
+pub fn board_query(protocol: BoardProtocol, dataset: &str) -> String {
+    if dataset.is_empty() {
+        format!("?protocol={}", protocol.as_str())
+    } else {
+        format!(
+            "?protocol={}&dataset={}",
+            protocol.as_str(),
+            urlencode(dataset)
+        )
     }
 }
 
@@ -250,8 +269,12 @@ pub struct SubmissionView {
     /// While queued or running, in plain words: the place in the queue or the estimates
     /// done, and when the scores are expected.
     pub progress_text: Option<String>,
-    /// Seconds until the scores are expected, from the speed measured on this server.
+    /// Seconds until the scores are expected, from the speed measured on this server; none
+    /// while no worker runs.
     pub eta_seconds: Option<f64>,
+    /// Queued or running, but no evaluation worker has been seen for longer than a lease: the
+    /// submission waits, safe, for one to start.
+    pub no_worker: bool,
     pub preflight: Preflight,
     /// The pre-flight's expectation at upload, in plain words.
     pub preflight_text: String,
@@ -330,6 +353,7 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
     let manages = viewer.can_see(submission.owner_id);
     let now = now_ms();
     let progress_text = match (submission.status, &details.queue, details.eta_seconds) {
+        _ if details.no_worker => Some(submission_details::NO_WORKER.to_string()),
         (Status::Queued, Some(place), Some(eta)) => Some(format!(
             "{}; scores expected {}",
             wording::queue_place(place.queued_ahead, place.running),
@@ -366,6 +390,7 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
         publication: publishing::state(&submission),
         progress_text,
         eta_seconds: details.eta_seconds,
+        no_worker: details.no_worker,
         owner: manages.then(|| OwnerLinks::of(&submission)),
         submission,
         scores: details

@@ -13,15 +13,20 @@ use std::time::{Duration, Instant};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
+use super::lease;
 use super::retry::MAX_ATTEMPTS;
 use crate::app::AppState;
+use crate::clock::now_ms;
 use crate::domain::DatasetId;
 use crate::shutdown::Shutdown;
 
-/// How often an idle worker looks at the queue without being woken.
+/// How often an idle worker looks at the queue without being woken; more often under a lease
+/// of a few seconds, since each look is a beat and a worker unseen for a lease counts as dead.
 const POLL: Duration = Duration::from_secs(2);
 /// How long a worker leaves the jobs of a dataset it refused before it looks at its copy again.
 const REFUSAL_PAUSE: Duration = Duration::from_secs(300);
+/// How long the beats of workers no longer seen are kept (a starting worker forgets older ones).
+const BEATS_KEPT_MS: i64 = 7 * 24 * 3600 * 1000;
 
 /// Starts `app.config.workers` workers (none for `serve --workers 0`); each ends once
 /// `shutdown` is set, after giving back the job it was running.
@@ -84,6 +89,13 @@ impl Worker {
         let worker = &self.id;
         tracing::info!(%worker, "worker started");
         let app = &self.app;
+        if let Err(e) = app
+            .store
+            .forget_beats_before(now_ms() - BEATS_KEPT_MS)
+            .await
+        {
+            tracing::warn!(%worker, error = %e, "old worker beats not pruned");
+        }
         while !self.shutdown.is_set() {
             // Register interest before looking, so a wake-up between the two is not lost.
             let notified = app.wake.notified();
@@ -120,9 +132,10 @@ impl Worker {
                             tracing::error!(%worker, error = %e, "cannot read the re-scoring queue")
                         }
                     }
+                    let poll = POLL.min(lease::renew_every(app.config.lease_ms()));
                     tokio::select! {
                         _ = &mut notified => {}
-                        _ = tokio::time::sleep(POLL) => {}
+                        _ = tokio::time::sleep(poll) => {}
                         _ = self.shutdown.wait() => {}
                     }
                 }

@@ -242,5 +242,8 @@ fn errors_give_the_next_step() {
         !none.contains("No finished public submission yet"),
         "{none}"
     );
-    assert!(none.contains("href=\"?dataset=synthA\""), "{none}");
+    assert!(
+        none.contains("href=\"/leaderboards/bop19?dataset=synthA\""),
+        "{none}"
+    );
 }

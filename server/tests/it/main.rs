@@ -34,6 +34,7 @@ mod exports;
 mod fair_use;
 mod first_use;
 mod hostile_input;
+mod method_page;
 mod ops;
 mod parallel_uploads;
 mod pinning;

@@ -3,7 +3,8 @@
 //! newer version, one that failed half-way, a served dataset whose folder is gone, on
 //! PostgreSQL a database that refuses connections); `/metrics` counts the jobs the test ran and
 //! reads the queue from the database; logs come as JSON lines with a span per job; a worker
-//! serves the same endpoints.
+//! serves the same endpoints; with no worker running, a queued submission promises no ETA and
+//! the age of the newest worker beat is exposed.
 
 use crate::common;
 
@@ -406,3 +407,55 @@ fn readiness_names_what_is_missing(kind: Db) {
     assert!(get_json(&format!("{}/healthz", server.base))["status"] == "ok");
 }
 both_databases!(readiness_names_what_is_missing);
+
+/// The wait is honest: with no evaluation worker (`serve --workers 0`, none elsewhere) a queued
+/// submission is promised no ETA; its page and its JSON say that no worker runs and that the
+/// submission is queued and safe, and `/metrics` gives the age of the newest worker beat (+Inf:
+/// none ever beat). Once a worker starts on the same database it beats, takes the job, and the
+/// age becomes that of a real beat.
+fn no_worker_means_an_honest_wait(kind: Db) {
+    const NO_WORKER: &str = "no evaluation worker is running; your submission is queued and safe";
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "noworker");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &["--workers", "0"]);
+    let base = server.base.clone();
+    let age = |text: &str| sample(text, "poseboard_worker_heartbeat_age_seconds", &[]);
+    assert_eq!(age(&scrape(&base)), Some(f64::INFINITY), "{kind:?}");
+
+    let r = upload(
+        &server,
+        "patient-net",
+        "synthA",
+        &fixtures().join("results/noisesmall_synthA-test.csv"),
+        None,
+    );
+    assert_eq!(r.status(), 202);
+    let id = r.json::<Value>().expect("json")["id"].as_i64().expect("id");
+    let s = get_json(&format!("{base}/api/v1/submissions/{id}"));
+    assert_eq!(s["status"], "queued", "{kind:?}: {s}");
+    assert_eq!(s["progress_text"], NO_WORKER, "{kind:?}: {s}");
+    assert_eq!(s["no_worker"], true, "{kind:?}: {s}");
+    assert!(s["eta_seconds"].is_null(), "{kind:?}: {s}");
+    let page = client()
+        .get(format!("{base}/submissions/{id}"))
+        .send()
+        .expect("page")
+        .text()
+        .expect("html");
+    assert!(page.contains(NO_WORKER), "{kind:?}: {page}");
+    assert!(!page.contains("scores expected"), "{kind:?}: {page}");
+    assert_eq!(age(&scrape(&base)), Some(f64::INFINITY), "{kind:?}");
+
+    // A worker on the same database beats and evaluates the waiting submission.
+    let (mut worker, _) = start_worker(&data, &datasets, &db);
+    let done = wait_done(&base, id, Duration::from_secs(120));
+    assert_eq!(done["no_worker"], false, "{kind:?}: {done}");
+    assert!(done["progress_text"].is_null(), "{kind:?}: {done}");
+    let seen = age(&scrape(&base)).expect("the age of the newest beat");
+    assert!(seen.is_finite() && seen >= 0.0, "{kind:?}: {seen}");
+    let _ = worker.kill();
+    let _ = worker.wait();
+}
+both_databases!(no_worker_means_an_honest_wait);

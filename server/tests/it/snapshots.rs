@@ -1,6 +1,8 @@
 //! Snapshots of the leaderboards: taken by administrators only, they hold every board as the
 //! live pages rendered it at that moment, and serve exactly those bytes afterwards, whatever is
-//! submitted later. Run on both databases.
+//! submitted later. Their pages are self-contained (tabs, JSON and exports stay in the snapshot,
+//! the one link to the live board is marked) and carry an absolute permalink. Run on both
+//! databases.
 
 use crate::common;
 
@@ -108,6 +110,7 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
         }
     };
     let mut before = Vec::new();
+    let mut kept_exports = Vec::new();
     for (protocol, dataset) in board_queries {
         let q = query(protocol, dataset);
         assert!(
@@ -126,35 +129,56 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
             assert!(text.contains("early-method"), "{text}");
         }
         assert!(text.contains(&format!("Snapshot {id} of ")), "{text}");
+        let tab = format!("/snapshots/{id}?protocol=eccv18");
         assert!(
-            text.contains(&format!("/snapshots/{id}{}", q.replace('&', "&amp;")))
-                || text.contains(&format!("/snapshots/{id}{}", q.replace('&', "&#38;"))),
-            "the banner lacks the permalink: {text}"
+            text.contains(&tab),
+            "{protocol} {dataset}: no {tab} tab: {text}"
         );
-        // And the stored page is the live page of that moment with the banner added and
-        // without the choice of the methods drawn (a snapshot draws the best five).
-        let live = String::from_utf8(bytes(&format!(
-            "{base}/leaderboards/{protocol}{}",
-            if dataset.is_empty() {
-                String::new()
-            } else {
-                format!("?dataset={dataset}")
-            }
-        )))
-        .expect("utf-8");
-        let live = match live.find("<details class=\"curve-choice\"") {
-            Some(at) if !dataset.is_empty() => {
-                let end = at + live[at..].find("</details>\n").expect("choice end");
-                // The block and the line break before it.
-                format!("{}{}", &live[..at - 1], &live[end + "</details>\n".len()..])
-            }
-            _ => live,
+        // The page is self-contained: its tabs, its JSON link and its exports stay in the
+        // snapshot, the one link to today's board is marked, and the orders and filters it
+        // did not keep are not offered.
+        let permalink = format!("{base}/snapshots/{id}{q}");
+        assert!(
+            text.contains(&format!("href=\"{}\"", permalink.replace('&', "&amp;")))
+                || text.contains(&format!("href=\"{}\"", permalink.replace('&', "&#38;"))),
+            "{protocol} {dataset}: the banner lacks the absolute permalink {permalink}: {text}"
+        );
+        assert_self_contained(&text, &base, id);
+        let live_q = if dataset.is_empty() {
+            String::new()
+        } else {
+            format!("?dataset={dataset}")
         };
-        let at = text
-            .find("\n<p class=\"snapshot-banner\">")
-            .expect("a banner");
-        let end = at + text[at..].find("</p>\n").expect("banner end") + "</p>\n".len();
-        assert_eq!(format!("{}{}", &text[..at], &text[end..]), live);
+        let live = String::from_utf8(bytes(&format!("{base}/leaderboards/{protocol}{live_q}")))
+            .expect("utf-8");
+        assert!(!live.contains("?\""), "a live link ends in `?`: {live}");
+        // The exports download the rows the snapshot kept: today's, until the boards change.
+        let mut exports = Vec::new();
+        for extension in ["csv", "json"] {
+            let url = format!("{base}/snapshots/{id}/export.{extension}{q}");
+            let r = client().get(&url).send().expect("answered");
+            assert_eq!(r.status(), 200, "{url}");
+            let disposition = r.headers()["content-disposition"]
+                .to_str()
+                .expect("ascii")
+                .to_string();
+            assert!(
+                disposition.starts_with(&format!(
+                    "attachment; filename=\"poseboard-snapshot-{id}-{protocol}"
+                )),
+                "{url}: {disposition}"
+            );
+            let kept = r.bytes().expect("body").to_vec();
+            assert_eq!(
+                kept,
+                bytes(&format!(
+                    "{base}/leaderboards/{protocol}/export.{extension}{live_q}"
+                )),
+                "{url}"
+            );
+            exports.push((url, kept));
+        }
+        kept_exports.extend(exports);
         before.push((q, json, html));
     }
     // Without a query: the BOP'19 board of all datasets, like the home page.
@@ -192,6 +216,20 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
         );
         assert_eq!(&bytes(&format!("{base}/snapshots/{id}{q}")), html, "{q}");
     }
+    for (url, kept) in &kept_exports {
+        assert_eq!(&bytes(url), kept, "{url}");
+    }
+    let live_csv = String::from_utf8(bytes(&format!(
+        "{base}/leaderboards/bop19/export.csv?dataset=synthA"
+    )))
+    .expect("utf-8");
+    let kept_csv = String::from_utf8(bytes(&format!(
+        "{base}/snapshots/{id}/export.csv?protocol=bop19&dataset=synthA"
+    )))
+    .expect("utf-8");
+    assert!(live_csv.contains("later-method"), "{live_csv}");
+    assert!(!kept_csv.contains("later-method"), "{kept_csv}");
+    assert!(kept_csv.contains("early-method"), "{kept_csv}");
 
     // Listed, as a page linked from the leaderboards and as JSON.
     let list = get_json(&format!("{base}/api/v1/snapshots"));
@@ -212,8 +250,58 @@ fn a_snapshot_keeps_its_bytes(kind: Db) {
         "/snapshots/nine".to_string(),
         format!("/snapshots/{id}?protocol=bop20"),
         format!("/api/v1/snapshots/{id}?protocol=bop19&dataset=nosuch"),
+        format!("/snapshots/{id}/export.csv?protocol=bop19&dataset=nosuch"),
+        format!("/snapshots/{id}/export.tex"),
     ] {
         assert_eq!(status(&format!("{base}{path}")), 404, "{path}");
     }
 }
 both_databases!(a_snapshot_keeps_its_bytes);
+
+/// Every link in the main part of a snapshot's page stays in snapshot `id` (its boards, their
+/// JSON, its exports, its absolute permalinks, its place in the list) or is the one marked link
+/// to the live board; no link ends in a bare `?`, and no order or filter is offered.
+fn assert_self_contained(text: &str, base: &str, id: i64) {
+    let main = &text[text.find("<main>").expect("main")..text.find("</main>").expect("main end")];
+    let inside = [
+        format!("/snapshots/{id}?protocol="),
+        format!("/snapshots/{id}/export.csv?protocol="),
+        format!("/snapshots/{id}/export.json?protocol="),
+        format!("/api/v1/snapshots/{id}?protocol="),
+        format!("/snapshots#snapshot-{id}"),
+        format!("{base}/snapshots/{id}?protocol="),
+    ];
+    let mut live = 0;
+    for (at, _) in main.match_indices("<a ") {
+        let tag = &main[at..at + main[at..].find('>').expect("tag end")];
+        let href = tag
+            .split("href=\"")
+            .nth(1)
+            .and_then(|h| h.split('"').next())
+            .unwrap_or_else(|| panic!("a link without href: {tag}"));
+        assert!(!href.ends_with('?'), "{href}");
+        if inside.iter().any(|p| href.starts_with(p.as_str())) {
+            continue;
+        }
+        assert!(
+            tag.contains("class=\"live\""),
+            "a link out of the snapshot, unmarked: {tag}"
+        );
+        assert!(
+            main[at + tag.len() + 1..].starts_with("live board ↗</a>"),
+            "{tag}"
+        );
+        live += 1;
+    }
+    assert_eq!(live, 1, "one marked link to the live board: {main}");
+    // As a query parameter (after `?`, `&`, or `&` escaped as `&amp;` or `&#38;`).
+    for key in ["sort=", "training=", "modality=", "curves="] {
+        for before in ['?', '&', ';'] {
+            let offered = format!("{before}{key}");
+            assert!(
+                !main.contains(&offered),
+                "{offered} offered in a snapshot: {main}"
+            );
+        }
+    }
+}

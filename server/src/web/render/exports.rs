@@ -30,7 +30,7 @@ impl Export {
         }
     }
 
-    fn extension(self) -> &'static str {
+    pub fn extension(self) -> &'static str {
         match self {
             Export::Csv => "csv",
             Export::Json => "json",

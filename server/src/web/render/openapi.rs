@@ -106,7 +106,7 @@ fn paths() -> Value {
                 }
             },
             "/api/v1/submissions/{id}": {
-                "get": { "summary": "Status, progress (work_done of work estimate evaluations, progress_text and eta_seconds from the speed measured on this server, the queue place), publication state, pre-flight report (red_flags, estimates_evaluated, estimated_seconds) and, once done, the scores per protocol; for its owner also `owner` with the download and action links",
+                "get": { "summary": "Status, progress (work_done of work estimate evaluations, progress_text and eta_seconds from the speed measured on this server, the queue place; while no evaluation worker runs, no_worker is true, eta_seconds null and progress_text says so), publication state, pre-flight report (red_flags, estimates_evaluated, estimated_seconds) and, once done, the scores per protocol; for its owner also `owner` with the download and action links",
                     "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission, or a private one of another account" } } },
                 "delete": { "summary": "Delete a submission with its file, scores and errors (owner or administrator)", "security": [{ "bearer": [] }],
                     "parameters": [id_param], "responses": { "200": { "description": "{ok, deleted}" }, "401": { "description": "no valid API token" }, "404": { "description": "no such submission of yours" } } } },

@@ -3,7 +3,7 @@
 //! else these routes answer as if they did not exist, whatever the method and body.
 
 use axum::extract::{Form, FromRequestParts, Path, Request, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
@@ -217,9 +217,15 @@ async fn api_audit(
     ))
 }
 
-/// Takes a snapshot of every board: 201 with its `id` and the permalinks of its boards.
-async fn api_take_snapshot(State(app): State<AppState>, viewer: Viewer) -> AppResult<Response> {
+/// Takes a snapshot of every board: 201 with its `id` and the permalinks of its boards. The
+/// permalinks in its pages' banners are absolute, at the service's public address (else the
+/// host this request came to).
+async fn api_take_snapshot(
+    State(app): State<AppState>,
+    headers: HeaderMap,
+    viewer: Viewer,
+) -> AppResult<Response> {
     let actor = admin(&viewer)?;
-    let entry = snapshots::take(&app, actor).await?;
+    let entry = snapshots::take(&app, actor, &pages::site_url(&app, &headers)).await?;
     Ok((StatusCode::CREATED, Json(entry)).into_response())
 }

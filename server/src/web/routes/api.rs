@@ -18,7 +18,7 @@ use crate::board_cache::Format;
 use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, quota, submit};
-use crate::service::{catalogue, downloads, methods, publishing, visibility};
+use crate::service::{catalogue, downloads, methods, publishing};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
@@ -77,10 +77,12 @@ async fn method(
     viewer: Viewer,
     Path(id): Path<MethodId>,
 ) -> AppResult<Json<serde_json::Value>> {
-    let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
-    Ok(Json(
-        json!({ "method": method, "submissions": submissions }),
-    ))
+    let home = methods::home(&app, id, viewer.user.as_ref()).await?;
+    Ok(Json(json!({
+        "method": home.method,
+        "standings": home.standings,
+        "submissions": home.submissions,
+    })))
 }
 
 /// The owner (or an administrator) states the method's details; fields left out stay.

@@ -17,16 +17,18 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{
-    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SubmissionId,
+    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SnapshotId, SubmissionId,
     TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
+use crate::service::leaderboard::Standing;
+use crate::service::submission_details::Owned;
 use crate::service::submissions;
 use crate::service::submissions::quota::{self, Quota};
-use crate::service::{catalogue, methods, publishing, visibility};
+use crate::service::{catalogue, methods, publishing};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
-use crate::store::submissions::{Fault, SubmissionRow};
+use crate::store::submissions::Fault;
 use crate::web::auth::Viewer;
 use crate::web::error::ErrorBody;
 use crate::web::routes::boards;
@@ -149,6 +151,11 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 pub(crate) struct LeaderboardPage {
     pub(crate) board: Leaderboard,
     pub(crate) protocols: [BoardProtocol; 4],
+    /// The snapshot this page is kept in, if it is: its links then lead to the snapshot's own
+    /// stored boards and exports, and what a snapshot did not store (other orders, the
+    /// filters, the live pages of methods and submissions) is not offered, so that a reader
+    /// of a cited board never lands on today's numbers unawares.
+    pub(crate) snapshot: Option<SnapshotId>,
 }
 
 impl LeaderboardPage {
@@ -161,7 +168,77 @@ impl LeaderboardPage {
         Ok(LeaderboardPage {
             board: views::leaderboard(app, protocol, q).await?,
             protocols: BoardProtocol::ALL,
+            snapshot: None,
         })
+    }
+
+    /// The name of this board's dataset; empty for the board of all datasets.
+    fn dataset_name(&self) -> &str {
+        self.board.dataset.as_ref().map_or("", |d| d.name.as_str())
+    }
+
+    /// The board of `protocol` (a tab), keeping the dataset (and live, the filters).
+    pub(crate) fn protocol_href(&self, protocol: &BoardProtocol) -> String {
+        match self.snapshot {
+            Some(id) => views::snapshot_board_url(id, *protocol, self.dataset_name()),
+            None => format!(
+                "/leaderboards/{}{}",
+                protocol.as_str(),
+                self.board.filter.with("sort", "")
+            ),
+        }
+    }
+
+    /// This protocol's board of dataset `name` (empty: all datasets).
+    pub(crate) fn dataset_href(&self, name: &str) -> String {
+        match self.snapshot {
+            Some(id) => views::snapshot_board_url(id, self.board.protocol, name),
+            None => self.live_href(self.board.filter.with("dataset", name)),
+        }
+    }
+
+    /// This board ordered by `key`; none in a snapshot, which keeps one order.
+    pub(crate) fn sort_href(&self, key: &str) -> Option<String> {
+        self.snapshot
+            .is_none()
+            .then(|| self.live_href(self.board.filter.with("sort", key)))
+    }
+
+    /// The live board with `query`.
+    pub(crate) fn live_href(&self, query: impl AsRef<str>) -> String {
+        let query = query.as_ref();
+        format!("/leaderboards/{}{query}", self.board.protocol.as_str())
+    }
+
+    /// This board's JSON twin.
+    pub(crate) fn json_href(&self) -> String {
+        match self.snapshot {
+            Some(id) => format!(
+                "/api/v1{}",
+                views::snapshot_board_url(id, self.board.protocol, self.dataset_name())
+            ),
+            None => format!(
+                "/api/v1{}",
+                self.live_href(self.board.filter.with("sort", ""))
+            ),
+        }
+    }
+
+    /// This board's export as `extension` (`csv`, `json`, `tex`): a snapshot's are those it
+    /// kept (CSV and JSON).
+    pub(crate) fn export_href(&self, extension: &str) -> Option<String> {
+        match self.snapshot {
+            Some(_) if extension == "tex" => None,
+            Some(id) => Some(format!(
+                "/snapshots/{id}/export.{extension}{}",
+                views::board_query(self.board.protocol, self.dataset_name())
+            )),
+            None => Some(format!(
+                "/leaderboards/{}/export.{extension}{}",
+                self.board.protocol.as_str(),
+                self.board.filter.query()
+            )),
+        }
     }
 }
 
@@ -241,7 +318,12 @@ async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<Data
 #[template(path = "method.html")]
 struct MethodPage {
     method: MethodRow,
-    submissions: Vec<SubmissionRow>,
+    /// Where it stands on every board it has a public entry on.
+    standings: Vec<Standing>,
+    /// The submissions the reader may see (the owner: all), newest first, with their scores.
+    submissions: Vec<Owned>,
+    /// The reader is its owner (or an administrator): private and held ones are listed too.
+    owner_view: bool,
     /// For its owner's (or an administrator's) browser: the CSRF token of the edit form.
     edit_csrf: Option<String>,
     model_scopes: &'static [ModelScope],
@@ -249,21 +331,44 @@ struct MethodPage {
     training: &'static [TrainingData],
 }
 
+impl MethodPage {
+    /// The dataset's board of the task `standing` is on.
+    fn board_url(&self, standing: &Standing) -> String {
+        format!(
+            "/leaderboards/{}?dataset={}",
+            standing.protocol.as_str(),
+            views::urlencode(&standing.dataset)
+        )
+    }
+
+    /// What the score of `standing` is, as its board names it.
+    fn score_label(&self, standing: &Standing) -> &'static str {
+        match standing.protocol {
+            BoardProtocol::Pose(ProtocolName::Bop19) => "AR",
+            BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
+            BoardProtocol::Coco(_) => "AP",
+        }
+    }
+}
+
 async fn method(
     State(app): State<AppState>,
     viewer: Viewer,
     Path(id): Path<MethodId>,
 ) -> AppResult<MethodPage> {
-    let (method, submissions) = visibility::method(&app, id, viewer.user.as_ref()).await?;
+    let home = methods::home(&app, id, viewer.user.as_ref()).await?;
+    let method = home.method;
     let may_edit = viewer.can_see(method.owner_id);
     Ok(MethodPage {
+        standings: home.standings,
+        submissions: home.submissions,
+        owner_view: may_edit,
         edit_csrf: viewer
             .session
             .as_ref()
             .filter(|_| may_edit)
             .map(|s| s.csrf_token.clone()),
         method,
-        submissions,
         model_scopes: ModelScope::ALL,
         modalities: Modality::ALL,
         training: TrainingData::ALL,

@@ -4,7 +4,10 @@
 //! back, unchanged whatever comes later (new scores, a changed template, another evaluator).
 //!
 //! The HTML of a snapshot's board is the live page rendered with a banner (the date and the
-//! permalink), so the banner is part of the stored bytes rather than spliced into them later.
+//! absolute permalink), so the banner is part of the stored bytes rather than spliced into them
+//! later. A snapshot is self-contained: its tabs lead to its own stored boards, its exports
+//! (CSV and JSON, kept with the boards) download its rows, and the one link to the live board
+//! is marked as such; the orders and filters it did not keep are not offered.
 
 use std::io::Read;
 use std::ops::Deref;
@@ -25,17 +28,20 @@ use crate::error::{AppError, AppResult};
 use crate::service::snapshots::{self, Board, Boards, Rendered};
 use crate::store::accounts::User;
 use crate::store::snapshots::{BoardFormat, SnapshotRow};
-use crate::web::routes::api::leaderboard_json;
+use crate::web::render::exports::Export;
+use crate::web::routes::api::{attachment, leaderboard_json};
 use crate::web::routes::boards::accepts_gzip;
 use crate::web::routes::pages::filters;
 use crate::web::routes::pages::{LeaderboardPage, html};
-use crate::web::views::{BoardFilter, urlencode};
+use crate::web::views::{BoardFilter, snapshot_board_url};
 
 /// The pages: the list and each stored board.
 pub fn page_router() -> Router<AppState> {
     Router::new()
         .route("/snapshots", get(list_page))
         .route("/snapshots/{id}", get(board_page))
+        .route("/snapshots/{id}/export.csv", get(export_csv))
+        .route("/snapshots/{id}/export.json", get(export_json))
 }
 
 /// Their JSON twins.
@@ -75,10 +81,10 @@ impl From<SnapshotRow> for SnapshotEntry {
                 .boards
                 .into_iter()
                 .map(|(protocol, dataset)| {
-                    let query = query(protocol, &dataset);
+                    let url = snapshot_board_url(s.id, protocol, &dataset);
                     BoardLink {
-                        url: format!("/snapshots/{}{query}", s.id),
-                        json_url: format!("/api/v1/snapshots/{}{query}", s.id),
+                        json_url: format!("/api/v1{url}"),
+                        url,
                         protocol,
                         dataset,
                     }
@@ -89,19 +95,6 @@ impl From<SnapshotRow> for SnapshotEntry {
     }
 }
 
-/// The query naming one board: `?protocol=P` and, for one dataset's board, `&dataset=D`.
-fn query(protocol: BoardProtocol, dataset: &str) -> String {
-    if dataset.is_empty() {
-        format!("?protocol={}", protocol.as_str())
-    } else {
-        format!(
-            "?protocol={}&dataset={}",
-            protocol.as_str(),
-            urlencode(dataset)
-        )
-    }
-}
-
 /// A board page of a snapshot: the live page's template and data, with the banner.
 #[derive(Template)]
 #[template(path = "snapshot_board.html")]
@@ -109,8 +102,9 @@ struct SnapshotBoardPage {
     page: LeaderboardPage,
     id: SnapshotId,
     taken_at: i64,
+    /// The absolute address of this board of this snapshot, for a paper to cite.
     permalink: String,
-    /// The same board today.
+    /// The same board today (the one link out of the snapshot, marked as such).
     live: String,
 }
 
@@ -122,39 +116,47 @@ impl Deref for SnapshotBoardPage {
     }
 }
 
-/// Takes a snapshot of every board now, by `actor` (an administrator).
-pub(crate) async fn take(app: &App, actor: &User) -> AppResult<SnapshotEntry> {
-    Ok(snapshots::take(app, actor, &LiveBoards(app)).await?.into())
+/// Takes a snapshot of every board now, by `actor` (an administrator); `site` is the address
+/// its permalinks start with.
+pub(crate) async fn take(app: &App, actor: &User, site: &str) -> AppResult<SnapshotEntry> {
+    Ok(snapshots::take(app, actor, &LiveBoards { app, site })
+        .await?
+        .into())
 }
 
 /// The live boards, rendered as a snapshot keeps them.
-struct LiveBoards<'a>(&'a App);
+struct LiveBoards<'a> {
+    app: &'a App,
+    /// The service's address, without a trailing slash.
+    site: &'a str,
+}
 
 impl Boards for LiveBoards<'_> {
     async fn render(&self, board: &Board<'_>) -> AppResult<Rendered> {
-        let (app, protocol, dataset, id) = (self.0, board.protocol, board.dataset, board.snapshot);
+        let (app, protocol, dataset, id) =
+            (self.app, board.protocol, board.dataset, board.snapshot);
         let filter = BoardFilter {
             dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
             ..BoardFilter::default()
         };
-        let q = query(protocol, dataset);
         let mut page = LeaderboardPage::of(app, protocol, &filter).await?;
         // A snapshot is fixed: it draws the best entries' curves and offers no other.
         page.board.curve_choices.clear();
+        page.snapshot = Some(id);
+        let csv = Export::Csv.render(&page.board)?;
+        let export_json = Export::Json.render(&page.board)?;
         let page = SnapshotBoardPage {
+            live: page.live_href(filter.query()),
             page,
             id,
             taken_at: board.taken_at,
-            permalink: format!("/snapshots/{id}{q}"),
-            live: format!(
-                "/leaderboards/{}{}",
-                protocol.as_str(),
-                filter.with("sort", "")
-            ),
+            permalink: format!("{}{}", self.site, snapshot_board_url(id, protocol, dataset)),
         };
         Ok(Rendered {
             html: html(&page)?,
             json: leaderboard_json(app, protocol, &filter).await?,
+            csv,
+            export_json,
         })
     }
 }
@@ -208,6 +210,65 @@ async fn board_json(
     stored(&app, &headers, &id, &q, BoardFormat::Json).await
 }
 
+async fn export_csv(
+    State(app): State<AppState>,
+    Path(id): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<Response> {
+    export(&app, &id, &q, Export::Csv).await
+}
+
+async fn export_json(
+    State(app): State<AppState>,
+    Path(id): Path<String>,
+    Query(q): Query<BoardQuery>,
+) -> AppResult<Response> {
+    export(&app, &id, &q, Export::Json).await
+}
+
+/// Which board of which snapshot a request names.
+fn named(id: &str, q: &BoardQuery) -> AppResult<(SnapshotId, BoardProtocol, String)> {
+    let id: SnapshotId = id.parse().map_err(|_| AppError::NotFound)?;
+    let protocol =
+        BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
+    Ok((id, protocol, q.dataset.clone().unwrap_or_default()))
+}
+
+/// A board's export as the snapshot kept it, as a download named after the snapshot and the
+/// board (`poseboard-snapshot-3-bop19-lmo.csv`).
+async fn export(app: &App, id: &str, q: &BoardQuery, format: Export) -> AppResult<Response> {
+    let (id, protocol, dataset) = named(id, q)?;
+    let kept = match format {
+        Export::Csv => BoardFormat::Csv,
+        Export::Json => BoardFormat::ExportJson,
+        Export::Tex => return Err(AppError::NotFound),
+    };
+    let body = inflate(
+        id,
+        &snapshots::board(app, id, protocol, &dataset, kept).await?,
+    )?;
+    let suffix = if dataset.is_empty() {
+        String::new()
+    } else {
+        format!("-{dataset}")
+    };
+    let name = format!(
+        "poseboard-snapshot-{id}-{}{suffix}.{}",
+        protocol.as_str(),
+        format.extension()
+    );
+    Ok(attachment(format.content_type(), &name, body))
+}
+
+/// The bytes a snapshot kept gzipped.
+fn inflate(id: SnapshotId, gz: &[u8]) -> AppResult<Vec<u8>> {
+    let mut body = Vec::with_capacity(gz.len() * 4);
+    flate2::read::GzDecoder::new(gz)
+        .read_to_end(&mut body)
+        .map_err(|e| AppError::failed(format!("inflating snapshot {id}"), e))?;
+    Ok(body)
+}
+
 /// The stored bytes of a board, gzipped to clients that take gzip, unpacked for the others.
 async fn stored(
     app: &App,
@@ -216,29 +277,23 @@ async fn stored(
     q: &BoardQuery,
     format: BoardFormat,
 ) -> AppResult<Response> {
-    let id: SnapshotId = id.parse().map_err(|_| AppError::NotFound)?;
-    let protocol =
-        BoardProtocol::named(q.protocol.as_deref().unwrap_or("bop19")).ok_or(AppError::NotFound)?;
-    let dataset = q.dataset.as_deref().unwrap_or_default();
-    let gz = snapshots::board(app, id, protocol, dataset, format).await?;
+    let (id, protocol, dataset) = named(id, q)?;
+    let gz = snapshots::board(app, id, protocol, &dataset, format).await?;
     let mut response = if accepts_gzip(headers) {
         let mut r = gz.into_response();
         r.headers_mut()
             .insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
         r
     } else {
-        let mut body = Vec::with_capacity(gz.len() * 4);
-        flate2::read::GzDecoder::new(gz.as_slice())
-            .read_to_end(&mut body)
-            .map_err(|e| AppError::failed(format!("inflating snapshot {id}"), e))?;
-        body.into_response()
+        inflate(id, &gz)?.into_response()
     };
     let h = response.headers_mut();
     h.insert(
         header::CONTENT_TYPE,
         HeaderValue::from_static(match format {
             BoardFormat::Html => "text/html; charset=utf-8",
-            BoardFormat::Json => "application/json",
+            BoardFormat::Json | BoardFormat::ExportJson => "application/json",
+            BoardFormat::Csv => "text/csv; charset=utf-8",
         }),
     );
     h.insert(header::VARY, HeaderValue::from_static("accept-encoding"));
