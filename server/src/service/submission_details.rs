@@ -8,10 +8,11 @@ use std::collections::BTreeMap;
 
 use evaluator::Report;
 use evaluator::coco::CocoReport;
+use evaluator::detection::DetectionReport;
 use evaluator::protocol::ProtocolName;
 
 use crate::app::App;
-use crate::domain::{BoardProtocol, SubmissionId};
+use crate::domain::{BoardProtocol, SubmissionId, Task};
 use crate::error::AppResult;
 use crate::service::{methods, submissions, visibility};
 use crate::store::accounts::User;
@@ -31,6 +32,8 @@ pub struct Details {
     pub records: Vec<ScoreRecord>,
     /// A 2D task's report, once scored.
     pub coco: Option<CocoReport>,
+    /// A bop24 submission's report, once scored.
+    pub bop24: Option<DetectionReport>,
     /// Per board with an entry of its method on its dataset: the entry's submission, and
     /// whether the owner pinned it.
     pub entries: Vec<(BoardProtocol, SubmissionId, bool)>,
@@ -57,8 +60,12 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
     let reports = app.store.reports_of_submission(id).await?;
     let records = app.store.score_records(id).await?;
     let coco = match submission.task {
-        Some(_) => app.store.coco_report(id).await?,
-        None => None,
+        Some(Task::Coco(_)) => app.store.coco_report(id).await?,
+        Some(Task::Bop24) | None => None,
+    };
+    let bop24 = match submission.task {
+        Some(Task::Bop24) => app.store.bop24_report(id).await?,
+        Some(Task::Coco(_)) | None => None,
     };
     let mut entries: Vec<(BoardProtocol, SubmissionId, bool)> = app
         .store
@@ -67,12 +74,14 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
         .into_iter()
         .map(|e| (e.protocol.into(), e.submission_id, e.pinned))
         .collect();
+    let (method_id, dataset_id) = (submission.method_id, submission.dataset_id);
+    let found = match submission.task {
+        Some(Task::Coco(task)) => app.store.coco_entry(task, method_id, dataset_id).await?,
+        Some(Task::Bop24) => app.store.bop24_entry(method_id, dataset_id).await?,
+        None => None,
+    };
     if let Some(task) = submission.task {
-        let found = app
-            .store
-            .coco_entry(task, submission.method_id, submission.dataset_id)
-            .await?;
-        entries.extend(found.map(|(sid, pinned)| (BoardProtocol::Coco(task), sid, pinned)));
+        entries.extend(found.map(|(sid, pinned)| (task.board(), sid, pinned)));
     }
     Ok(Details {
         pinned: app.store.is_pinned(id).await?,
@@ -83,6 +92,7 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
         reports,
         records,
         coco,
+        bop24,
         entries,
     })
 }
@@ -101,7 +111,7 @@ pub struct Owned {
     pub submission: SubmissionRow,
     /// Per protocol, the headline score (AR for bop19, recall for eccv18).
     pub scores: BTreeMap<ProtocolName, f64>,
-    /// A 2D task's AP, once scored.
+    /// A 2D task's AP or a bop24 submission's bop24_mAP, once scored.
     pub ap: Option<f64>,
 }
 
@@ -120,6 +130,7 @@ pub async fn of_owner(app: &App, user: &User) -> AppResult<Vec<Owned>> {
         .coco_scores_of_owner(user.id)
         .await?
         .into_iter()
+        .chain(app.store.bop24_scores_of_owner(user.id).await?)
         .collect();
     Ok(rows
         .into_iter()

@@ -296,7 +296,7 @@ fn latex(board: &Leaderboard) -> String {
     let what = match board.protocol {
         BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
         BoardProtocol::Pose(ProtocolName::Bop19) => "average recall",
-        BoardProtocol::Coco(_) => "average precision",
+        BoardProtocol::Bop24 | BoardProtocol::Coco(_) => "average precision",
     };
     let mut out = String::new();
     let _ = writeln!(

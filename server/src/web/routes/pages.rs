@@ -78,6 +78,17 @@ pub(crate) mod filters {
             **self
         }
     }
+    /// A mean that is NaN when nothing was counted (bop24's mAPs) is missing too.
+    impl MaybeScore for f64 {
+        fn get(&self) -> Option<f64> {
+            Some(*self).filter(|v| v.is_finite())
+        }
+    }
+    impl MaybeScore for &f64 {
+        fn get(&self) -> Option<f64> {
+            (*self).get()
+        }
+    }
 
     #[askama::filter_fn]
     pub fn opt_pct(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
@@ -148,7 +159,7 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 #[template(path = "leaderboard.html")]
 pub(crate) struct LeaderboardPage {
     pub(crate) board: Leaderboard,
-    pub(crate) protocols: [BoardProtocol; 4],
+    pub(crate) protocols: [BoardProtocol; 5],
 }
 
 impl LeaderboardPage {
