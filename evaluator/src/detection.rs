@@ -29,7 +29,7 @@ use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
@@ -62,7 +62,7 @@ pub fn default_max_estimates_per_image(dataset: &str) -> usize {
 
 /// The three scored errors. MSSD is thresholded twice: as a fraction of the object diameter
 /// and, since 2025, in millimetres.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DetectionError {
     Mssd,
@@ -96,7 +96,7 @@ impl DetectionError {
 }
 
 /// The report of one `bop24` evaluation, with bop_toolkit's key names (`scores_bop24.json`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DetectionReport {
     pub evaluator_version: String,
     pub dataset: String,
@@ -116,18 +116,18 @@ pub struct DetectionReport {
     pub instances: usize,
     pub instances_counted: usize,
     /// Mean of the MSSD and MSPD mAPs. NaN (`null` in JSON) when no instance is counted.
-    #[serde(rename = "bop24_mAP")]
+    #[serde(rename = "bop24_mAP", deserialize_with = "nan_as_null")]
     pub bop24_map: f64,
-    #[serde(rename = "bop24_mAP_mssd")]
+    #[serde(rename = "bop24_mAP_mssd", deserialize_with = "nan_as_null")]
     pub bop24_map_mssd: f64,
-    #[serde(rename = "bop24_mAP_mssd_mm")]
+    #[serde(rename = "bop24_mAP_mssd_mm", deserialize_with = "nan_as_null")]
     pub bop24_map_mssd_mm: f64,
-    #[serde(rename = "bop24_mAP_mspd")]
+    #[serde(rename = "bop24_mAP_mspd", deserialize_with = "nan_as_null")]
     pub bop24_map_mspd: f64,
     /// The MSSD mAP alone (BOP'25).
-    #[serde(rename = "bop25_mAP")]
+    #[serde(rename = "bop25_mAP", deserialize_with = "nan_as_null")]
     pub bop25_map: f64,
-    #[serde(rename = "bop25_mAP_mm")]
+    #[serde(rename = "bop25_mAP_mm", deserialize_with = "nan_as_null")]
     pub bop25_map_mm: f64,
     /// Seconds; -1 when some kept estimate gives no time, as the toolkit writes it.
     pub bop24_average_time_per_image: f64,
@@ -135,18 +135,18 @@ pub struct DetectionReport {
     pub errors: Vec<ErrorScores>,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DetectionParameters {
     pub max_estimates_per_image: usize,
     pub visib_gt_min: f64,
     pub max_sym_disc_step: f64,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ErrorScores {
     pub error: DetectionError,
     pub thresholds: Vec<f64>,
-    #[serde(rename = "mAP")]
+    #[serde(rename = "mAP", deserialize_with = "nan_as_null")]
     pub map: f64,
     /// The objects with at least one counted instance, by id.
     pub objects: Vec<ObjectAp>,
@@ -155,7 +155,7 @@ pub struct ErrorScores {
     pub precision_recall: Vec<f64>,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectAp {
     pub obj_id: u32,
     /// Counted instances (at least 10 % visible) in the target images.
@@ -165,6 +165,12 @@ pub struct ObjectAp {
     pub ap: f64,
     /// At each of the error's thresholds.
     pub ap_per_threshold: Vec<f64>,
+}
+
+/// A mean written as `null` (serde_json writes NaN so), read back as NaN: a report the service
+/// stored as JSON reads back even when no instance was counted.
+fn nan_as_null<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// Scores `results` on `dataset` for 6D detection, keeping at most `max_estimates_per_image`

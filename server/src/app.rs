@@ -11,7 +11,9 @@ use tokio::sync::{Mutex, Notify, OnceCell};
 use crate::board_cache::BoardCache;
 use crate::config::Config;
 use crate::datasets;
-use crate::datasets::config::{LoadError, folder_options, is_dataset_folder};
+use crate::datasets::config::{
+    BOP24_TARGETS, LoadError, bop24_options, folder_options, is_dataset_folder,
+};
 use crate::datasets::parsed_files::ParsedFiles;
 use crate::datasets::uploaded_file;
 use crate::domain::DatasetId;
@@ -35,6 +37,9 @@ pub struct App {
     /// arrive while a dataset loads wait for that load instead of reading and hashing the
     /// folder again (a large dataset takes seconds and much memory per load).
     datasets: Mutex<HashMap<DatasetId, Arc<OnceCell<Loaded>>>>,
+    /// The datasets this process has loaded for BOP'24 6D detection (with
+    /// `test_targets_bop24.json` as targets), by id, each loaded once as above.
+    detection: Mutex<HashMap<DatasetId, Arc<OnceCell<Arc<Dataset>>>>>,
 }
 
 /// What a process is: the server owns the datasets table and the uploads; a worker process
@@ -87,6 +92,7 @@ impl App {
             wake: Notify::new(),
             pool: pool.build()?,
             datasets: Mutex::new(HashMap::new()),
+            detection: Mutex::new(HashMap::new()),
         });
         if role == Role::Server {
             app.register_datasets().await?;
@@ -180,10 +186,7 @@ impl App {
             .clone();
         // A failed load leaves the slot empty, so the next request reads the folder again.
         slot.get_or_try_init(|| async {
-            let folder = match self.role {
-                Role::Server => PathBuf::from(&row.path),
-                Role::Worker => self.config.datasets_dir().join(&row.name),
-            };
+            let folder = self.folder(row);
             self.load(folder.clone()).await?.map_err(|e| {
                 AppError::failed(format!("dataset {} ({})", row.name, folder.display()), e)
             })
@@ -192,10 +195,53 @@ impl App {
         .cloned()
     }
 
+    /// The folder of a registered dataset for this process: the server reads the folder it
+    /// registered, a worker the folder of that name in its own datasets directory.
+    fn folder(&self, row: &DatasetRow) -> PathBuf {
+        match self.role {
+            Role::Server => PathBuf::from(&row.path),
+            Role::Worker => self.config.datasets_dir().join(&row.name),
+        }
+    }
+
+    /// The dataset of a registered row loaded for BOP'24 6D detection: its split as
+    /// configured, every object of the images of `test_targets_bop24.json` a target. `None`
+    /// when this process's copy has no such file (the dataset takes no bop24 uploads).
+    pub async fn bop24_dataset(&self, row: &DatasetRow) -> AppResult<Option<Arc<Dataset>>> {
+        let folder = self.folder(row);
+        if !folder.join(BOP24_TARGETS).is_file() {
+            return Ok(None);
+        }
+        let slot = self
+            .detection
+            .lock()
+            .await
+            .entry(row.id)
+            .or_default()
+            .clone();
+        slot.get_or_try_init(|| async {
+            let (name, folder) = (row.name.clone(), folder.clone());
+            self.on_pool("loading a dataset for bop24", move || {
+                bop24_options(&folder)
+                    .map_err(LoadError::from)
+                    .and_then(|opts| Ok(Dataset::load_with(&folder, &opts)?))
+                    .map(Arc::new)
+                    .map_err(|e| {
+                        AppError::failed(format!("dataset {name} ({})", folder.display()), e)
+                    })
+            })
+            .await
+        })
+        .await
+        .cloned()
+        .map(Some)
+    }
+
     /// Forgets a loaded dataset, so that the next use reads the folder again (a worker whose
     /// copy was refused looks again later, once an operator may have fixed it).
     pub async fn forget_dataset(&self, id: DatasetId) {
         self.datasets.lock().await.remove(&id);
+        self.detection.lock().await.remove(&id);
     }
 
     /// Loads and hashes the dataset in `folder` on the evaluation threads.

@@ -30,7 +30,7 @@ pub use layouts::{
     CHALLENGE_LAYOUTS, CORE_LAYOUTS, ChallengeLayout, CoreLayout, write_challenge_miniature,
     write_core_miniature,
 };
-pub use submissions::{DemoResult, write_demo_results};
+pub use submissions::{DETECTOR, DemoResult, write_demo_detection_results, write_demo_results};
 
 pub use crate::domain::DEMO_DATASET;
 
@@ -76,7 +76,9 @@ struct CameraInfo {
 }
 
 /// Writes the dataset into `dir` (created; must be empty or absent): `camera.json`,
-/// `models/`, `models_eval/` (the same files), `test/` and `test_targets_bop19.json`. Images
+/// `models/`, `models_eval/` (the same files), `test/`, `test_targets_bop19.json` and the
+/// BOP'24 image list `test_targets_bop24.json` (every image with a target, so the dataset serves 6D
+/// detection too, and the demo detection submission has a board). Images
 /// are 640 x 480 with LINEMOD's intrinsics unless `opts.image_size` asks for another size
 /// (the intrinsics then scale with it); depth PNGs are in tenths of a millimetre
 /// (`depth_scale` 0.1). Same options -> byte-identical files.
@@ -127,7 +129,14 @@ pub fn write_dataset(dir: &Path, opts: &SynthOptions) -> Result<()> {
             &shapes,
         )?);
     }
-    files::write_json_list(&dir.join("test_targets_bop19.json"), &targets)
+    files::write_json_list(&dir.join("test_targets_bop19.json"), &targets)?;
+    // Every image with a target, once, in order (the targets are sorted by image).
+    let mut images: Vec<serde_json::Value> = targets
+        .iter()
+        .map(|t| serde_json::json!({"im_id": t.im_id, "scene_id": t.scene_id}))
+        .collect();
+    images.dedup();
+    files::write_json_list(&dir.join("test_targets_bop24.json"), &images)
 }
 
 #[cfg(test)]

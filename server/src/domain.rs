@@ -313,6 +313,66 @@ impl CocoProtocol {
     }
 }
 
+/// What a submission is scored for instead of the 6D localization protocols (bop19, eccv18): a
+/// BOP'22 2D task, or BOP'24 6D detection. Each has its own result format, scores table and
+/// board, so a submission holds one task alone. Written as its name (`bop22-det`, `bop22-seg`,
+/// `bop24`) in uploads, the `protocols` column and JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Task {
+    Coco(CocoProtocol),
+    /// 6D detection: BOP'19 CSV files scored by average precision on the dataset's
+    /// `test_targets_bop24.json` (`evaluator::detection`).
+    Bop24,
+}
+
+impl Task {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Task::Coco(t) => t.as_str(),
+            Task::Bop24 => evaluator::detection::PROTOCOL,
+        }
+    }
+
+    /// The 2D task, if it is one.
+    pub fn coco(self) -> Option<CocoProtocol> {
+        match self {
+            Task::Coco(t) => Some(t),
+            Task::Bop24 => None,
+        }
+    }
+
+    /// Its board.
+    pub fn board(self) -> BoardProtocol {
+        match self {
+            Task::Coco(t) => BoardProtocol::Coco(t),
+            Task::Bop24 => BoardProtocol::Bop24,
+        }
+    }
+}
+
+impl FromStr for Task {
+    type Err = FieldError;
+
+    fn from_str(s: &str) -> Result<Self, FieldError> {
+        match s {
+            evaluator::detection::PROTOCOL => Ok(Task::Bop24),
+            other => other.parse().map(Task::Coco),
+        }
+    }
+}
+
+impl Serialize for Task {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl fmt::Display for Task {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// A task an upload can be scored for: the value of the upload's `protocol` field (the form's
 /// and the API's), and what it means. The one list the upload form offers and the errors name,
 /// so that a task added here is offered wherever a task is chosen.
@@ -343,6 +403,10 @@ impl UploadTask {
             label: "6D poses: both, with each one's warnings (eccv18 considers one estimate per target)",
         },
         UploadTask {
+            value: "bop24",
+            label: "6D detection: bop24, the BOP Challenge's main task since 2024, scored by average precision (BOP'19 CSV)",
+        },
+        UploadTask {
             value: "bop22-det",
             label: "2D detection: bop22-det, boxes scored by AP (BOP'22 COCO JSON)",
         },
@@ -352,7 +416,7 @@ impl UploadTask {
         },
     ];
 
-    /// The values, for a message: "bop19, eccv18, bop19,eccv18, bop22-det or bop22-seg".
+    /// The values, for a message: "bop19, eccv18, bop19,eccv18, bop24, bop22-det or bop22-seg".
     pub fn values() -> String {
         let named: Vec<&str> = UploadTask::ALL
             .iter()
@@ -413,20 +477,22 @@ impl FileKind {
     }
 }
 
-/// What a leaderboard ranks: a 6D protocol's scores or a 2D task's AP. Written as its name
-/// (`bop19`, `eccv18`, `bop22-det`, `bop22-seg`) in URLs and JSON.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
-#[serde(untagged)]
+/// What a leaderboard ranks: a 6D protocol's scores, BOP'24 6D detection's mAP or a 2D task's
+/// AP. Written as its name (`bop19`, `eccv18`, `bop24`, `bop22-det`, `bop22-seg`) in URLs and
+/// JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum BoardProtocol {
     Pose(evaluator::protocol::ProtocolName),
+    Bop24,
     Coco(CocoProtocol),
 }
 
 impl BoardProtocol {
     /// Every board, in the order the pages list them.
-    pub const ALL: [BoardProtocol; 4] = [
+    pub const ALL: [BoardProtocol; 5] = [
         BoardProtocol::Pose(evaluator::protocol::ProtocolName::Bop19),
         BoardProtocol::Pose(evaluator::protocol::ProtocolName::Eccv18),
+        BoardProtocol::Bop24,
         BoardProtocol::Coco(CocoProtocol::Detection),
         BoardProtocol::Coco(CocoProtocol::Segmentation),
     ];
@@ -434,6 +500,7 @@ impl BoardProtocol {
     pub fn as_str(self) -> &'static str {
         match self {
             BoardProtocol::Pose(p) => p.as_str(),
+            BoardProtocol::Bop24 => Task::Bop24.as_str(),
             BoardProtocol::Coco(t) => t.as_str(),
         }
     }
@@ -445,6 +512,12 @@ impl BoardProtocol {
 
     pub fn is_coco(self) -> bool {
         matches!(self, BoardProtocol::Coco(_))
+    }
+}
+
+impl Serialize for BoardProtocol {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
     }
 }
 

@@ -234,6 +234,68 @@ impl Preflight {
         }
     }
 
+    /// Coverage of a valid result file against the dataset's BOP'24 target images (every
+    /// object of each a target), keeping at most `max_estimates_per_image` per image, as the
+    /// evaluation will. Estimates of objects absent from an image are what detection expects
+    /// (neither true nor false positives), so they are no warning; metres instead of
+    /// millimetres, most images without an estimate and unknown objects are red flags as for
+    /// the localization protocols.
+    pub fn of_bop24(
+        dataset: &Dataset,
+        results: &Results,
+        max_estimates_per_image: usize,
+    ) -> Preflight {
+        let c = evaluator::detection::coverage(dataset, results, max_estimates_per_image);
+        let images: std::collections::BTreeSet<(u32, u32)> = results
+            .estimates
+            .iter()
+            .map(|e| (e.scene_id, e.im_id))
+            .collect();
+        let mut warnings = Vec::new();
+        let (targets, without) = (c.target_images, c.images_without_estimate);
+        if without > 0 {
+            warnings.push(format!(
+                "{without} of {} without an estimate of an object they hold",
+                count(targets, "target image", "target images")
+            ));
+        }
+        if c.estimates_beyond_cap > 0 {
+            warnings.push(format!(
+                "{} beyond the {max_estimates_per_image} best-scored per image will not count",
+                count(c.estimates_beyond_cap, "estimate", "estimates")
+            ));
+        }
+        let mut red_flags: Vec<RedFlag> = unit_flag(dataset, results).into_iter().collect();
+        if without * 2 > targets {
+            red_flags.push(RedFlag::MostTargetsMissing { without, targets });
+        }
+        let mut unknown: Vec<u32> = results
+            .estimates
+            .iter()
+            .map(|e| e.obj_id)
+            .filter(|o| !dataset.objects.contains_key(o))
+            .collect();
+        if !unknown.is_empty() {
+            let estimates = unknown.len();
+            unknown.sort_unstable();
+            unknown.dedup();
+            red_flags.push(RedFlag::UnknownObjects {
+                estimates,
+                objects: unknown,
+            });
+        }
+        Preflight {
+            estimates: results.estimates.len(),
+            images: images.len(),
+            targets,
+            targets_without_estimate: without,
+            estimates_not_for_targets: c.estimates_ignored,
+            warnings,
+            red_flags,
+            ..Preflight::default()
+        }
+    }
+
     /// Estimate evaluations the job will take: the evaluated estimates summed over protocols.
     pub fn work(&self) -> i64 {
         self.estimates_evaluated.values().sum::<usize>() as i64

@@ -21,6 +21,7 @@ pub mod accounts;
 pub mod audit;
 pub mod backup;
 pub mod board_version;
+pub mod bop24_scores;
 pub mod coco_scores;
 pub mod copy;
 pub mod datasets;

@@ -21,7 +21,7 @@ use evaluator::visibility::VisibMode;
 use evaluator::{Dataset, Progress, Protocol, Report, evaluate_prepared, results};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::datasets::config::{SplitChoice, folder_choice};
+use crate::datasets::config::{BOP24_TARGETS, SplitChoice, folder_choice};
 use crate::preflight::Preflight;
 use crate::service::submissions::Protocols;
 use crate::wording::count;
@@ -308,9 +308,6 @@ fn load_bop24_dataset(dir: &Path, results: &Path, split: &SplitArgs) -> Result<D
     Dataset::load_with(&dir, &options)
         .map_err(|e| anyhow::anyhow!("cannot load the dataset in {}: {e}", dir.display()))
 }
-
-/// The targets file of BOP'24 6D detection.
-const BOP24_TARGETS: &str = "test_targets_bop24.json";
 
 /// The bop24 scores with the toolkit's names, and the per-object AP, for the terminal.
 pub fn bop24_table(r: &DetectionReport) -> String {

@@ -15,16 +15,48 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use evaluator::Report;
+use evaluator::detection::{self, DetectionReport};
 use evaluator::protocol::ProtocolName;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use reqwest::blocking::{Client, Response, multipart};
 use serde::Serialize;
 use serde_json::Value;
 
-use crate::cli::eval::{Scale, load_results, print_scores_as};
+use crate::cli::eval::{Scale, bop24_table, load_results, print_scores_as};
 use crate::domain::Visibility;
 use crate::preflight::RedFlag;
 use crate::service::submissions::file_dataset;
+
+/// What `--protocol` asks for: one localization protocol, or BOP'24 6D detection, which reads
+/// the same CSV files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SubmitProtocol {
+    Pose(ProtocolName),
+    Bop24,
+}
+
+impl SubmitProtocol {
+    fn as_str(self) -> &'static str {
+        match self {
+            SubmitProtocol::Pose(p) => p.as_str(),
+            SubmitProtocol::Bop24 => detection::PROTOCOL,
+        }
+    }
+}
+
+impl std::str::FromStr for SubmitProtocol {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            detection::PROTOCOL => Ok(SubmitProtocol::Bop24),
+            other => other
+                .parse()
+                .map(SubmitProtocol::Pose)
+                .map_err(|_| format!("unknown protocol `{other}` (bop19, eccv18 or bop24)")),
+        }
+    }
+}
 
 #[derive(Args, Debug)]
 pub struct SubmitArgs {
@@ -37,9 +69,10 @@ pub struct SubmitArgs {
     /// name `METHOD_DATASET-SPLIT.csv` says, as the server reads it).
     #[arg(long)]
     pub dataset: Option<String>,
-    /// Evaluate under this protocol only (default: both).
+    /// Evaluate under this protocol only: bop19 or eccv18, or bop24 for 6D detection (the
+    /// dataset's test_targets_bop24.json); default: bop19 and eccv18.
     #[arg(long)]
-    pub protocol: Option<ProtocolName>,
+    pub protocol: Option<SubmitProtocol>,
     /// Who may see the submission (default: the server's).
     #[arg(long)]
     pub visibility: Option<Visibility>,
@@ -110,6 +143,11 @@ pub fn run(args: SubmitArgs) -> Result<()> {
         if let Some(report) = scores.get(&protocol) {
             print_scores_as(report, Scale::Percent);
         }
+    }
+    if !done["bop24"].is_null() {
+        let report: DetectionReport =
+            serde_json::from_value(done["bop24"].clone()).context("the bop24 scores")?;
+        print!("{}", bop24_table(&report));
     }
     let outcome = Outcome::of(&done, &server, &args, &dataset)?;
     print!("{}", outcome.text());

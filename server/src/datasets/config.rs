@@ -92,6 +92,19 @@ pub fn folder_options(folder: &Path) -> Result<DatasetOptions, ConfigError> {
     Ok(folder_choice(folder)?.options())
 }
 
+/// The targets file of BOP'24 6D detection: the images whose every object is a target.
+pub const BOP24_TARGETS: &str = "test_targets_bop24.json";
+
+/// The options to load `folder` with for BOP'24 6D detection: the split its configuration file
+/// chooses, with [`BOP24_TARGETS`] as targets (the file's `targets_file` is the localization
+/// protocols' choice, not this task's).
+pub fn bop24_options(folder: &Path) -> Result<DatasetOptions, ConfigError> {
+    Ok(DatasetOptions {
+        targets_file: BOP24_TARGETS.to_string(),
+        ..folder_options(folder)?
+    })
+}
+
 /// Whether `folder` looks like a dataset to serve: it has its targets file.
 pub fn is_dataset_folder(folder: &Path) -> bool {
     folder_options(folder).is_ok_and(|o| folder.join(o.targets_file).is_file())

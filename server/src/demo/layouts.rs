@@ -17,9 +17,7 @@ pub use challenge::{CHALLENGE_LAYOUTS, ChallengeLayout, write_challenge_miniatur
 
 use anyhow::{Context, Result, bail};
 
-use super::files::{
-    write_depth_png, write_depth_tiff, write_gray_png, write_gray_tiff, write_json_list,
-};
+use super::files::{write_depth_png, write_depth_tiff, write_gray_png, write_gray_tiff};
 use super::{SynthOptions, write_dataset};
 
 /// How one core BOP dataset lays out its test split (after bop_toolkit's `dataset_params.py`
@@ -113,7 +111,8 @@ pub const CORE_LAYOUTS: [CoreLayout; 7] = [
 /// Writes the synthetic dataset of `opts` into `dir` at the layout's published image size, laid
 /// out as `layout`: the split folder `test` or `test_{type}`, the camera file, depth images
 /// (PNG or TIFF) and `depth_scale` in the layout's unit, `gray/` images for grayscale datasets,
-/// and besides `test_targets_bop19.json` the BOP'24 image list `test_targets_bop24.json`.
+/// and besides `test_targets_bop19.json` the BOP'24 image list `test_targets_bop24.json` (both
+/// written by [`write_dataset`]).
 pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions) -> Result<()> {
     let opts = SynthOptions {
         image_size: layout.published_size,
@@ -134,19 +133,13 @@ pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions
     std::fs::remove_file(dir.join("camera.json"))?;
     super::files::write_json_object(&dir.join(layout.camera_file), camera)?;
 
-    let mut images = Vec::new();
     for scene in std::fs::read_dir(dir.join(&split))? {
         let scene = scene?.path();
-        let scene_id: u32 = scene
-            .file_name()
-            .and_then(|n| n.to_str()?.parse().ok())
-            .with_context(|| format!("{} is not a scene folder", scene.display()))?;
         let cameras_path = scene.join("scene_camera.json");
         let mut cameras: std::collections::BTreeMap<u32, serde_json::Value> =
             read_json(&cameras_path)?;
         for (im_id, cam) in &mut cameras {
             cam["depth_scale"] = layout.depth_scale.into();
-            images.push(serde_json::json!({"im_id": im_id, "scene_id": scene_id}));
             let name = format!("{im_id:06}.png");
             let depth = scene.join("depth").join(&name);
             rescale_depth(&depth, plain_scale / layout.depth_scale, layout.tiff)?;
@@ -162,8 +155,7 @@ pub fn write_core_miniature(dir: &Path, layout: &CoreLayout, opts: &SynthOptions
         }
         super::files::write_json_object(&cameras_path, cameras)?;
     }
-    images.sort_by_key(|v| (v["scene_id"].as_u64(), v["im_id"].as_u64()));
-    write_json_list(&dir.join("test_targets_bop24.json"), &images)
+    Ok(())
 }
 
 fn rename(from: &Path, to: &Path) -> Result<()> {

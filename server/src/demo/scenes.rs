@@ -84,10 +84,10 @@ const FIRST_INSTANCE_LABEL: u8 = 3;
 /// One line of test_targets_bop19.json, keys in bop_toolkit's (sorted) order.
 #[derive(Serialize)]
 pub(super) struct Target {
-    im_id: u32,
+    pub(super) im_id: u32,
     inst_count: u32,
     obj_id: u32,
-    scene_id: u32,
+    pub(super) scene_id: u32,
 }
 
 #[derive(Serialize)]

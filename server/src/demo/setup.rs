@@ -5,11 +5,13 @@
 use std::path::Path;
 
 use crate::app::App;
+use crate::datasets::config::BOP24_TARGETS;
 use crate::demo::{
-    DEMO_DATASET, SynthOptions, write_dataset, write_demo_coco_results, write_demo_results,
+    DEMO_DATASET, SynthOptions, write_dataset, write_demo_coco_results,
+    write_demo_detection_results, write_demo_results,
 };
 use crate::domain::{
-    Description, Hardware, MethodName, Modality, Password, TrainingData, UserName, Visibility,
+    Description, Hardware, MethodName, Modality, Password, Task, TrainingData, UserName, Visibility,
 };
 use crate::service::accounts::{new_secret, register};
 use crate::service::submissions::{Limit, Protocols, Upload, UploadedFile, submit_under};
@@ -62,12 +64,22 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
     let dataset_dir = std::path::PathBuf::from(&row.path);
     let out_dir = out.path().to_path_buf();
     let demos = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
-        let mut demos = write_demo_results(&dataset_dir, &out_dir, 11)?;
-        demos.extend(write_demo_coco_results(&dataset_dir, &out_dir, 11)?);
+        // The `.csv` files are scored under the 6D protocols, the `.json` files (BOP'22 2D
+        // results) for the task read from them, and the detector's for bop24, when the dataset
+        // has its targets (one generated before it had them has none).
+        let mut demos: Vec<_> = write_demo_results(&dataset_dir, &out_dir, 11)?
+            .into_iter()
+            .chain(write_demo_coco_results(&dataset_dir, &out_dir, 11)?)
+            .map(|d| (d, None))
+            .collect();
+        if dataset_dir.join(BOP24_TARGETS).is_file() {
+            let detector = write_demo_detection_results(&dataset_dir, &out_dir, 11)?;
+            demos.push((detector, Some(Task::Bop24)));
+        }
         Ok(demos)
     })
     .await??;
-    for demo in demos {
+    for (demo, task) in demos {
         let bytes = std::fs::read(&demo.path)?;
         let name = demo
             .path
@@ -78,8 +90,7 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
             method: MethodName::parse(&demo.method)?,
             dataset: Some(row.name.clone()),
             protocols: Protocols::asked(&[]),
-            // The demo's `.json` files are BOP'22 2D results: their task is read from them.
-            task: None,
+            task,
             meta: MethodMeta {
                 description: Description::parse(&demo.description)?,
                 training_data: Some(TrainingData::Synthetic),

@@ -14,7 +14,7 @@ use evaluator::{Dataset, Report};
 
 use crate::app::App;
 use crate::datasets::{self, uploaded_file};
-use crate::domain::{CocoProtocol, SubmissionId};
+use crate::domain::{CocoProtocol, SubmissionId, Task};
 use crate::error::{AppError, AppResult};
 use crate::service::visibility;
 use crate::store::accounts::User;
@@ -97,14 +97,15 @@ pub async fn comparable(
     Ok(rows)
 }
 
-/// Whether two submissions, each with its 6D protocols or its 2D task, were scored under a
-/// protocol in common: the rule of what compares.
+/// Whether two submissions, each with its 6D protocols or its task (2D, or BOP'24 detection),
+/// were scored under a protocol in common that compares side by side: the rule of what
+/// compares. BOP'24 detections are ranked on their board and not compared here.
 pub fn share_a_protocol(
-    (a, a_task): (&[ProtocolName], Option<CocoProtocol>),
-    (b, b_task): (&[ProtocolName], Option<CocoProtocol>),
+    (a, a_task): (&[ProtocolName], Option<Task>),
+    (b, b_task): (&[ProtocolName], Option<Task>),
 ) -> bool {
     match (a_task, b_task) {
-        (Some(x), Some(y)) => x == y,
+        (Some(Task::Coco(x)), Some(Task::Coco(y))) => x == y,
         (None, None) => a.iter().any(|p| b.contains(p)),
         _ => false,
     }
@@ -222,8 +223,9 @@ mod tests {
     #[test]
     fn only_submissions_scored_alike_compare() {
         use ProtocolName::{Bop19, Eccv18};
-        let det = Some(CocoProtocol::Detection);
-        let seg = Some(CocoProtocol::Segmentation);
+        let det = Some(Task::Coco(CocoProtocol::Detection));
+        let seg = Some(Task::Coco(CocoProtocol::Segmentation));
+        let bop24 = Some(Task::Bop24);
         assert!(share_a_protocol((&[Bop19, Eccv18], None), (&[Bop19], None)));
         assert!(!share_a_protocol((&[Eccv18], None), (&[Bop19], None)));
         // A 6D submission never compares with a 2D one, whatever its (empty) protocols.
@@ -231,5 +233,8 @@ mod tests {
         assert!(!share_a_protocol((&[], det), (&[Bop19], None)));
         assert!(share_a_protocol((&[], det), (&[], det)));
         assert!(!share_a_protocol((&[], det), (&[], seg)));
+        // BOP'24 detections are compared on their board, with nothing else.
+        assert!(!share_a_protocol((&[], bop24), (&[], bop24)));
+        assert!(!share_a_protocol((&[], bop24), (&[Bop19], None)));
     }
 }

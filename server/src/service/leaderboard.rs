@@ -10,16 +10,19 @@ use std::sync::Arc;
 
 use evaluator::Report;
 use evaluator::coco::CocoReport;
+use evaluator::detection::{DetectionError, DetectionReport};
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
 use crate::board_cache::{BoardKey, Rendered};
+use crate::datasets::config::BOP24_TARGETS;
 use crate::domain::{
     BoardProtocol, DEMO_DATASET, FieldError, MethodId, Modality, SubmissionId, TrainingData,
     optional,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
+use crate::store::bop24_scores::Bop24BoardEntry;
 use crate::store::coco_scores::CocoBoardEntry;
 use crate::store::datasets::DatasetRow;
 use crate::store::scores::BoardEntry;
@@ -120,13 +123,32 @@ pub fn core_datasets(datasets: &[DatasetRow]) -> Vec<DatasetRow> {
         .collect()
 }
 
+/// Whether a dataset takes bop24 uploads: its folder (the server's, which serves the boards)
+/// has `test_targets_bop24.json`. Only those are the bop24 board's core columns, since a
+/// method could never cover the others.
+fn takes_bop24(d: &DatasetRow) -> bool {
+    std::path::Path::new(&d.path).join(BOP24_TARGETS).is_file()
+}
+
 /// The curves of a dataset's board, per drawn method in rank order, from their stored reports.
 pub enum Curves {
     /// A 6D board: each method's report (its recall curves).
     Pose(Vec<(String, Report)>),
     /// A 2D board: each method's COCO report (its precision-recall curve).
     Coco(Vec<(String, CocoReport)>),
+    /// The bop24 board: each method's detection report (its precision-recall curves).
+    Bop24(Vec<(String, DetectionReport)>),
 }
+
+/// The parts of bop24_mAP the bop24 board shows next to it, with the toolkit's keys: the MSSD
+/// and MSPD mAPs it is the mean of, MSSD in millimetres, and BOP'25's MSSD-only scores.
+pub const BOP24_PARTS: [&str; 5] = [
+    "bop24_mAP_mssd",
+    "bop24_mAP_mspd",
+    "bop24_mAP_mssd_mm",
+    "bop25_mAP",
+    "bop25_mAP_mm",
+];
 
 /// A ranked board, as every rendering of it needs it.
 pub struct Ranked {
@@ -150,7 +172,8 @@ pub struct Ranked {
     pub drawn: Vec<MethodId>,
     /// With one dataset selected, the curves drawn.
     pub curves: Option<Curves>,
-    /// 2D boards: the keys of the AP/AR numbers, in COCOeval's order.
+    /// 2D boards: the keys of the AP/AR numbers, in COCOeval's order; the bop24 board: the
+    /// parts of its mAP ([`BOP24_PARTS`]).
     pub stat_names: Vec<&'static str>,
 }
 
@@ -175,22 +198,34 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     };
     let query = Query::parse(filter, &datasets)?;
     let selected_id = selected.as_ref().map(|d| d.id);
-    let (entries, coco): (Vec<Entry>, Vec<CocoBoardEntry>) = match protocol {
-        BoardProtocol::Pose(p) => (
-            app.store
-                .leaderboard(p, selected_id)
-                .await?
-                .into_iter()
-                .map(pose_entry)
-                .collect(),
-            Vec::new(),
-        ),
+    let (mut coco, mut bop24): (Vec<CocoBoardEntry>, Vec<Bop24BoardEntry>) =
+        (Vec::new(), Vec::new());
+    let entries: Vec<Entry> = match protocol {
+        BoardProtocol::Pose(p) => app
+            .store
+            .leaderboard(p, selected_id)
+            .await?
+            .into_iter()
+            .map(pose_entry)
+            .collect(),
         BoardProtocol::Coco(t) => {
-            let coco = app.store.coco_leaderboard(t, selected_id).await?;
-            (coco.iter().map(coco_entry).collect(), coco)
+            coco = app.store.coco_leaderboard(t, selected_id).await?;
+            coco.iter().map(coco_entry).collect()
+        }
+        BoardProtocol::Bop24 => {
+            // A file that matched no counted instance has no mAP to rank by.
+            bop24 = app.store.bop24_leaderboard(selected_id).await?;
+            bop24.retain(|e| e.report.bop24_map.is_finite());
+            bop24.iter().map(bop24_entry).collect()
         }
     };
-    let core = core_datasets(&datasets);
+    let core: Vec<DatasetRow> = match protocol {
+        BoardProtocol::Bop24 => core_datasets(&datasets)
+            .into_iter()
+            .filter(takes_bop24)
+            .collect(),
+        BoardProtocol::Pose(_) | BoardProtocol::Coco(_) => core_datasets(&datasets),
+    };
     let columns: Vec<DatasetRow> = match &selected {
         Some(d) => vec![d.clone()],
         None => core.clone(),
@@ -243,6 +278,16 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
                 })
                 .collect(),
         )),
+        (Some(d), BoardProtocol::Bop24) => Some(Curves::Bop24(
+            drawn
+                .iter()
+                .filter_map(|r| {
+                    let id = r.scores.get(&d.name)?.submission_id;
+                    let e = bop24.iter().find(|e| e.submission_id == id)?;
+                    Some((r.method.clone(), e.report.clone()))
+                })
+                .collect(),
+        )),
         (None, _) => None,
     };
     let drawn: Vec<MethodId> = drawn.iter().map(|r| r.method_id).collect();
@@ -258,6 +303,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     Ok(Ranked {
         stat_names: match protocol {
             BoardProtocol::Pose(_) => Vec::new(),
+            BoardProtocol::Bop24 => BOP24_PARTS.to_vec(),
             BoardProtocol::Coco(_) => evaluator::coco::STAT_NAMES.to_vec(),
         },
         datasets,
@@ -310,6 +356,15 @@ pub async fn standings(app: &App, id: MethodId) -> AppResult<Vec<Standing>> {
                 .await?
                 .iter()
                 .map(coco_entry)
+                .collect(),
+            BoardProtocol::Bop24 => app
+                .store
+                .bop24_leaderboard(None)
+                .await?
+                .iter()
+                // As on the board: a file that matched no counted instance is not ranked.
+                .filter(|e| e.report.bop24_map.is_finite())
+                .map(bop24_entry)
                 .collect(),
         };
         for dataset in &datasets {
@@ -410,6 +465,68 @@ fn coco_entry(e: &CocoBoardEntry) -> Entry {
         dataset: e.dataset.clone(),
         objects: BTreeMap::new(),
     }
+}
+
+fn bop24_entry(e: &Bop24BoardEntry) -> Entry {
+    let r = &e.report;
+    Entry {
+        cell: Cell {
+            submission_id: e.submission_id,
+            score: r.bop24_map,
+            recall: None,
+            ar_vsd: None,
+            ar_mssd: None,
+            ar_mspd: None,
+            time: e.time_avg,
+            pinned: e.pinned,
+            record: None,
+            ci95: None,
+            score_id: None,
+            stats: BOP24_PARTS
+                .into_iter()
+                .zip([
+                    r.bop24_map_mssd,
+                    r.bop24_map_mspd,
+                    r.bop24_map_mssd_mm,
+                    r.bop25_map,
+                    r.bop25_map_mm,
+                ])
+                .filter(|(_, v)| v.is_finite())
+                .collect(),
+            red_flags: Vec::new(),
+        },
+        method_id: e.method_id,
+        method: e.method.clone(),
+        owner: e.owner.clone(),
+        training_data: e.training_data,
+        modality: e.modality,
+        hardware: e.hardware.clone(),
+        dataset_id: e.dataset_id,
+        dataset: e.dataset.clone(),
+        objects: bop24_objects(r),
+    }
+}
+
+/// The per-object AP of a bop24 report as its mAP is made: per object, the mean of its MSSD
+/// and MSPD APs (their mean over the objects is bop24_mAP, since both count the same objects).
+pub fn bop24_objects(r: &DetectionReport) -> BTreeMap<i64, f64> {
+    let of = |error: DetectionError| {
+        r.errors
+            .iter()
+            .find(|s| s.error == error)
+            .map(|s| {
+                s.objects
+                    .iter()
+                    .map(|o| (i64::from(o.obj_id), o.ap))
+                    .collect::<BTreeMap<i64, f64>>()
+            })
+            .unwrap_or_default()
+    };
+    let mspd = of(DetectionError::Mspd);
+    of(DetectionError::Mssd)
+        .into_iter()
+        .filter_map(|(o, mssd)| Some((o, (mssd + mspd.get(&o)?) / 2.0)))
+        .collect()
 }
 
 #[cfg(test)]

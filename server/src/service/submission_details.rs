@@ -8,12 +8,13 @@ use std::collections::BTreeMap;
 
 use evaluator::Report;
 use evaluator::coco::CocoReport;
+use evaluator::detection::DetectionReport;
 use evaluator::protocol::ProtocolName;
 use serde::Serialize;
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{BoardProtocol, MethodId, SubmissionId};
+use crate::domain::{BoardProtocol, MethodId, SubmissionId, Task};
 use crate::error::AppResult;
 use crate::service::{methods, submissions, visibility};
 use crate::store::accounts::User;
@@ -40,6 +41,8 @@ pub struct Details {
     pub records: Vec<ScoreRecord>,
     /// A 2D task's report, once scored.
     pub coco: Option<CocoReport>,
+    /// A bop24 submission's report, once scored.
+    pub bop24: Option<DetectionReport>,
     /// Per board with an entry of its method on its dataset: the entry's submission, and
     /// whether the owner pinned it.
     pub entries: Vec<(BoardProtocol, SubmissionId, bool)>,
@@ -69,11 +72,15 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
     let reports = app.store.reports_of_submission(id).await?;
     let mut records = app.store.score_records(id).await?;
     let coco = match submission.task {
-        Some(_) => {
+        Some(Task::Coco(_)) => {
             records.extend(app.store.coco_record(id).await?);
             app.store.coco_report(id).await?
         }
-        None => None,
+        Some(Task::Bop24) | None => None,
+    };
+    let bop24 = match submission.task {
+        Some(Task::Bop24) => app.store.bop24_report(id).await?,
+        Some(Task::Coco(_)) | None => None,
     };
     let mut entries: Vec<(BoardProtocol, SubmissionId, bool)> = app
         .store
@@ -82,12 +89,14 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
         .into_iter()
         .map(|e| (e.protocol.into(), e.submission_id, e.pinned))
         .collect();
+    let (method_id, dataset_id) = (submission.method_id, submission.dataset_id);
+    let found = match submission.task {
+        Some(Task::Coco(task)) => app.store.coco_entry(task, method_id, dataset_id).await?,
+        Some(Task::Bop24) => app.store.bop24_entry(method_id, dataset_id).await?,
+        None => None,
+    };
     if let Some(task) = submission.task {
-        let found = app
-            .store
-            .coco_entry(task, submission.method_id, submission.dataset_id)
-            .await?;
-        entries.extend(found.map(|(sid, pinned)| (BoardProtocol::Coco(task), sid, pinned)));
+        entries.extend(found.map(|(sid, pinned)| (task.board(), sid, pinned)));
     }
     Ok(Details {
         pinned: app.store.is_pinned(id).await?,
@@ -99,6 +108,7 @@ pub async fn details(app: &App, id: SubmissionId, reader: Option<&User>) -> AppR
         reports,
         records,
         coco,
+        bop24,
         entries,
     })
 }
@@ -127,7 +137,7 @@ pub struct Owned {
     pub submission: SubmissionRow,
     /// Per protocol, the headline score (AR for bop19, recall for eccv18).
     pub scores: BTreeMap<ProtocolName, f64>,
-    /// A 2D task's AP, once scored.
+    /// A 2D task's AP or a bop24 submission's bop24_mAP, once scored.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ap: Option<f64>,
 }
@@ -143,14 +153,16 @@ impl Owned {
 pub async fn of_owner(app: &App, user: &User) -> AppResult<Vec<Owned>> {
     let rows = app.store.submissions_of_owner(user.id).await?;
     let scores = app.store.scores_of_owner(user.id).await?;
-    let aps = app.store.coco_scores_of_owner(user.id).await?;
+    let mut aps = app.store.coco_scores_of_owner(user.id).await?;
+    aps.extend(app.store.bop24_scores_of_owner(user.id).await?);
     Ok(scored(rows, scores, aps))
 }
 
 /// `rows`, submissions of method `id` (those the reader may see), with their headline scores.
 pub async fn of_method(app: &App, id: MethodId, rows: Vec<SubmissionRow>) -> AppResult<Vec<Owned>> {
     let scores = app.store.scores_of_method(id).await?;
-    let aps = app.store.coco_scores_of_method(id).await?;
+    let mut aps = app.store.coco_scores_of_method(id).await?;
+    aps.extend(app.store.bop24_scores_of_method(id).await?);
     Ok(scored(rows, scores, aps))
 }
 

@@ -14,6 +14,10 @@
 //! A `.json` file (or any file when a 2D task is asked for) is a BOP'22 2D result file: parsed
 //! with the evaluator's COCO parser (each problem naming its entry and key), its task the one
 //! asked for or read from its content, and pre-flighted against the dataset's target images.
+//!
+//! A `bop24` upload (BOP'24 6D detection) is a BOP'19 CSV file, parsed as any, pre-flighted
+//! against the images of the dataset's `test_targets_bop24.json`; a dataset without that file
+//! takes none.
 
 mod archive;
 pub mod quota;
@@ -30,8 +34,9 @@ use sha2::{Digest, Sha256};
 use crate::app::App;
 use crate::clock::now_ms;
 use crate::datasets;
+use crate::datasets::config::BOP24_TARGETS;
 use crate::datasets::uploaded_file;
-use crate::domain::{CocoProtocol, DatasetId, Hardware, MethodName, Visibility};
+use crate::domain::{CocoProtocol, DatasetId, Hardware, MethodName, Task, Visibility};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
 use crate::service::datasets::served;
@@ -60,6 +65,10 @@ pub fn progress_words(s: &SubmissionRow) -> Option<String> {
     let done = s.work_done.clamp(0, s.work);
     let per = &s.preflight.estimates_evaluated;
     Some(match per.iter().collect::<Vec<_>>().as_slice() {
+        _ if s.task == Some(Task::Bop24) => format!(
+            "{done} of {} evaluated under bop24",
+            wording::count(s.work, "estimate", "estimates")
+        ),
         _ if s.task.is_some() => format!(
             "{done} of {} evaluated",
             wording::count(s.work, "detection", "detections")
@@ -130,8 +139,9 @@ pub struct Upload {
     /// The protocols to evaluate a 6D (CSV) file under, and those the uploader chose (see
     /// [`Protocols::asked`]).
     pub protocols: Protocols,
-    /// The 2D task asked for; `None`: a `.json` file's task is inferred from its content.
-    pub task: Option<CocoProtocol>,
+    /// The task asked for (bop24 or a 2D one); `None`: a `.json` file's 2D task is inferred
+    /// from its content, a `.csv` file is scored under `protocols`.
+    pub task: Option<Task>,
     pub meta: MethodMeta,
     pub hardware: Hardware,
     /// As asked; `None`: private for a new submission, and unchanged for a file already
@@ -182,8 +192,8 @@ pub struct Accepted {
 struct Checked {
     file: UploadedFile,
     dataset_id: DatasetId,
-    /// The 2D task of a BOP'22 file (scored for it instead of the protocols).
-    task: Option<CocoProtocol>,
+    /// The task of a bop24 or BOP'22 file (scored for it instead of the protocols).
+    task: Option<Task>,
     estimates_count: usize,
     preflight: Preflight,
 }
@@ -247,8 +257,9 @@ pub async fn submit_under(
                     message: format!("{first} and {name} are both for dataset `{ds}`"),
                     problems: Vec::new(),
                 }),
+                None if task == Some(Task::Bop24) => check_bop24(app, &ds, &from, file).await,
                 None if task.is_some() || is_coco_file(&name) => {
-                    check_coco(app, &ds, &from, file, task).await
+                    check_coco(app, &ds, &from, file, task.and_then(Task::coco)).await
                 }
                 None => check(app, &ds, &from, file, &protocols).await,
             },
@@ -369,26 +380,7 @@ async fn check(
     let (estimates_count, preflight) = match parsed {
         Ok(r) => r,
         Err(evaluator::Error::Results(problems)) => {
-            let mut list: Vec<LineProblem> = problems
-                .problems
-                .iter()
-                .map(|p| LineProblem {
-                    file: None,
-                    line: p.line,
-                    message: p.to_string(),
-                })
-                .collect();
-            if problems.omitted > 0 {
-                list.push(LineProblem {
-                    file: None,
-                    line: 0,
-                    message: format!("... and {} more problems", problems.omitted),
-                });
-            }
-            return Err(AppError::Invalid {
-                message: format!("{} is not a valid result file", file.name),
-                problems: list,
-            });
+            return Err(line_problems(&file.name, &problems));
         }
         Err(e) => return Err(AppError::failed("reading a result file", e)),
     };
@@ -405,6 +397,30 @@ async fn check(
         estimates_count,
         preflight,
     })
+}
+
+/// The problems of a refused BOP'19 CSV file, each with its line.
+fn line_problems(file_name: &str, problems: &results::Problems) -> AppError {
+    let mut list: Vec<LineProblem> = problems
+        .problems
+        .iter()
+        .map(|p| LineProblem {
+            file: None,
+            line: p.line,
+            message: p.to_string(),
+        })
+        .collect();
+    if problems.omitted > 0 {
+        list.push(LineProblem {
+            file: None,
+            line: 0,
+            message: format!("... and {} more problems", problems.omitted),
+        });
+    }
+    AppError::Invalid {
+        message: format!("{file_name} is not a valid result file"),
+        problems: list,
+    }
 }
 
 /// Whether a file is a BOP'22 2D result file (`METHOD_DATASET-test.json`) by its name.
@@ -470,7 +486,61 @@ async fn check_coco(
     Ok(Checked {
         file,
         dataset_id: row.id,
-        task: Some(task),
+        task: Some(Task::Coco(task)),
+        estimates_count,
+        preflight,
+    })
+}
+
+/// [`check`] for a bop24 file: a BOP'19 CSV file, parsed as any, pre-flighted against the
+/// images of the dataset's `test_targets_bop24.json` with the toolkit's cap of estimates per
+/// image.
+async fn check_bop24(
+    app: &App,
+    dataset: &str,
+    from: &str,
+    file: UploadedFile,
+) -> AppResult<Checked> {
+    if is_coco_file(&file.name) {
+        return Err(AppError::BadRequest(format!(
+            "{} is a BOP'22 JSON file: bop24 (6D detection) reads BOP'19 CSV result files",
+            file.name
+        )));
+    }
+    let row = served(app, dataset, from).await?;
+    let Some(loaded) = app.bop24_dataset(&row).await? else {
+        return Err(AppError::BadRequest(format!(
+            "dataset `{}` has no {BOP24_TARGETS}, the image targets of 6D detection: it takes \
+             no bop24 upload (ask its operator to add the file, or choose bop19)",
+            row.name
+        )));
+    };
+    let path = file.tmp.to_path_buf();
+    let parsed = tokio::task::spawn_blocking(move || {
+        results::load_results(&path).map(|r| {
+            let cap = evaluator::detection::default_max_estimates_per_image(&loaded.name);
+            (r.estimates.len(), Preflight::of_bop24(&loaded, &r, cap))
+        })
+    })
+    .await
+    .map_err(|e| AppError::failed("checking a result file", e))?;
+    let (estimates_count, preflight) = match parsed {
+        Ok(r) => r,
+        Err(evaluator::Error::Results(problems)) => {
+            return Err(line_problems(&file.name, &problems));
+        }
+        Err(e) => return Err(AppError::failed("reading a result file", e)),
+    };
+    if estimates_count == 0 {
+        return Err(AppError::Invalid {
+            message: format!("{} contains no estimate", file.name),
+            problems: Vec::new(),
+        });
+    }
+    Ok(Checked {
+        file,
+        dataset_id: row.id,
+        task: Some(Task::Bop24),
         estimates_count,
         preflight,
     })
@@ -658,7 +728,7 @@ struct Kept {
     size: u64,
     gzip: Vec<u8>,
     dataset_id: DatasetId,
-    task: Option<CocoProtocol>,
+    task: Option<Task>,
     estimates_count: usize,
     preflight: Preflight,
 }

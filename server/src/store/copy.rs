@@ -25,6 +25,7 @@ pub(super) const TABLES: &[&str] = &[
     "scores",
     "object_scores",
     "coco_scores",
+    "bop24_scores",
     "entry_pins",
     "estimate_errors",
     "api_tokens",

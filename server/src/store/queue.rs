@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use evaluator::Report;
 use evaluator::coco::{CocoParameters, CocoReport};
+use evaluator::detection::DetectionReport;
 use evaluator::protocol::ProtocolName;
 use sqlx::{Any, Row, Transaction};
 
@@ -201,6 +202,59 @@ impl Store {
         .bind(&report.evaluator_version)
         .bind(parameters)
         .bind(&finished.dataset_hash)
+        .execute(&mut *tx)
+        .await?;
+        board_version::bump(&mut tx).await?;
+        tx.commit().await?;
+        self.board_changed();
+        Ok(true)
+    }
+
+    /// [`Store::finish`] for BOP'24 6D detection: its report goes to `bop24_scores`, with its
+    /// mAP and parts for the board (NULL where no instance was counted: SQLite stores a NaN as
+    /// NULL anyway, so both databases say it the same way), in the transaction that marks the
+    /// job done and bumps the board version.
+    pub async fn finish_bop24(
+        &self,
+        id: SubmissionId,
+        worker: &str,
+        report: &DetectionReport,
+        eval_ms: i64,
+    ) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let now = now_ms();
+        let work = report.estimates_evaluated as i64;
+        if !mark_done(&mut tx, id, worker, work, eval_ms, now).await? {
+            let mine = done_by(&mut tx, id, worker).await?;
+            tx.rollback().await?;
+            return Ok(mine);
+        }
+        let json = serde_json::to_string(report).map_err(|e| StoreError::Corrupt {
+            column: "report_json",
+            value: e.to_string(),
+        })?;
+        sqlx::query("DELETE FROM bop24_scores WHERE submission_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        let number = |v: f64| Some(v).filter(|v| v.is_finite());
+        sqlx::query(
+            "INSERT INTO bop24_scores (submission_id, map, map_mssd, map_mssd_mm, map_mspd, \
+             time_avg, estimates_evaluated, report_json, created_at) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+        )
+        // Each number is NULL or not; a cached statement would keep the first one's types.
+        .persistent(false)
+        .bind(id)
+        .bind(number(report.bop24_map))
+        .bind(number(report.bop24_map_mssd))
+        .bind(number(report.bop24_map_mssd_mm))
+        .bind(number(report.bop24_map_mspd))
+        // A negative time (the toolkit's -1) means the file gave none.
+        .bind(Some(report.bop24_average_time_per_image).filter(|t| *t >= 0.0))
+        .bind(work)
+        .bind(json)
+        .bind(now)
         .execute(&mut *tx)
         .await?;
         board_version::bump(&mut tx).await?;

@@ -121,8 +121,8 @@ impl Store {
 
     /// Flags for re-scoring the finished submissions scored by one of the `stale` versions (or
     /// by an unrecorded one), or with a score that has no bootstrap replicates; how many. The 2D
-    /// tasks' submissions are left alone: their scores have no intervals, and their evaluator
-    /// follows pycocotools, which does not move.
+    /// tasks' and bop24's submissions are left alone: their scores have no intervals, and
+    /// re-scoring runs the 6D localization protocols only.
     pub async fn flag_rescoring(&self, stale: &[String]) -> StoreResult<u64> {
         // One placeholder per stale version; only their count comes from the caller.
         let marks: Vec<String> = (1..=stale.len()).map(|i| format!("${i}")).collect();
@@ -136,7 +136,8 @@ impl Store {
              rescore_lease_until = NULL WHERE status = 'done' AND rescore = 0 AND \
              (evaluator_version IS NULL{in_stale} OR EXISTS (SELECT 1 FROM scores sc \
              WHERE sc.submission_id = submissions.id AND sc.replicates IS NULL)) \
-             AND NOT EXISTS (SELECT 1 FROM coco_scores c WHERE c.submission_id = submissions.id)"
+             AND NOT EXISTS (SELECT 1 FROM coco_scores c WHERE c.submission_id = submissions.id) \
+             AND NOT EXISTS (SELECT 1 FROM bop24_scores b WHERE b.submission_id = submissions.id)"
         );
         let mut query = sqlx::query(sqlx::AssertSqlSafe(sql));
         for v in stale {

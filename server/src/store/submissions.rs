@@ -18,7 +18,7 @@ use super::methods::MethodMeta;
 use super::{Backend, Store, StoreError, StoreResult, fetch_in, parse_column};
 use crate::clock::now_ms;
 use crate::domain::{
-    CocoProtocol, DatasetId, Hardware, MethodId, MethodName, SubmissionId, UserId, Visibility,
+    DatasetId, Hardware, MethodId, MethodName, SubmissionId, Task, UserId, Visibility,
 };
 use crate::preflight::{Preflight, RedFlag};
 
@@ -100,10 +100,10 @@ pub struct SubmissionRow {
     pub method: String,
     pub dataset_id: DatasetId,
     pub dataset: String,
-    /// The 6D protocols it is evaluated under (none for a 2D task).
+    /// The 6D protocols it is evaluated under (none for a task).
     pub protocols: Vec<ProtocolName>,
-    /// The BOP'22 2D task it is scored for, instead of 6D protocols.
-    pub task: Option<CocoProtocol>,
+    /// The BOP'22 2D task or BOP'24 6D detection it is scored for, instead of 6D protocols.
+    pub task: Option<Task>,
     pub visibility: Visibility,
     pub file_name: String,
     pub file_sha256: String,
@@ -141,6 +141,11 @@ impl SubmissionRow {
     pub fn is_public(&self) -> bool {
         self.visibility == Visibility::Public && !self.hidden
     }
+
+    /// Whether it is a BOP'22 2D file (its entries are detections, not pose estimates).
+    pub fn is_coco(&self) -> bool {
+        matches!(self.task, Some(Task::Coco(_)))
+    }
 }
 
 /// A submission to create, with the method it is for.
@@ -150,8 +155,8 @@ pub struct NewSubmission<'a> {
     pub meta: &'a MethodMeta,
     pub dataset_id: DatasetId,
     pub protocols: &'a [ProtocolName],
-    /// A 2D task instead of the protocols.
-    pub task: Option<CocoProtocol>,
+    /// A task instead of the protocols.
+    pub task: Option<Task>,
     pub visibility: Visibility,
     pub file_name: &'a str,
     pub file_sha256: &'a str,
@@ -229,8 +234,9 @@ pub struct Deleted {
     pub file_unused: bool,
 }
 
-/// The `protocols` column: the 6D protocols, comma-separated, or the 2D task alone (so the
-/// duplicate check and its unique index tell a detection from a segmentation of one file).
+/// The `protocols` column: the 6D protocols, comma-separated, or the task alone (so the
+/// duplicate check and its unique index tell a detection from a segmentation of one file, and
+/// a bop24 upload from a bop19 one of the same CSV file).
 fn protocols_to_text(new: &NewSubmission<'_>) -> String {
     match new.task {
         Some(task) => task.as_str().to_string(),
@@ -243,8 +249,8 @@ fn protocols_to_text(new: &NewSubmission<'_>) -> String {
     }
 }
 
-fn protocols_from_text(s: String) -> StoreResult<(Vec<ProtocolName>, Option<CocoProtocol>)> {
-    if let Ok(task) = CocoProtocol::from_str(&s) {
+fn protocols_from_text(s: String) -> StoreResult<(Vec<ProtocolName>, Option<Task>)> {
+    if let Ok(task) = Task::from_str(&s) {
         return Ok((Vec::new(), Some(task)));
     }
     let protocols = s
@@ -647,7 +653,13 @@ impl Store {
             return Ok(None);
         };
         let sha: String = row.try_get("file_sha256")?;
-        for table in ["estimate_errors", "entry_pins", "scores", "coco_scores"] {
+        for table in [
+            "estimate_errors",
+            "entry_pins",
+            "scores",
+            "coco_scores",
+            "bop24_scores",
+        ] {
             // `table` comes from the list above, never from the request.
             let sql = format!("DELETE FROM {table} WHERE submission_id = $1");
             sqlx::query(sqlx::AssertSqlSafe(sql))

@@ -7,13 +7,14 @@ use std::collections::BTreeMap;
 
 use evaluator::Report;
 use evaluator::coco::CocoReport;
+use evaluator::detection::DetectionReport;
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::report::{Parameters, parameters};
 use serde::Serialize;
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SnapshotId, SubmissionId};
+use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SnapshotId, SubmissionId, Task};
 use crate::error::AppResult;
 use crate::preflight::Preflight;
 use crate::service::leaderboard::{self, Curves};
@@ -36,6 +37,9 @@ pub struct Leaderboard {
     /// The 6D protocol's parameters (none for a 2D task: COCOeval's are fixed).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub parameters: Option<Parameters>,
+    /// The bop24 board: per dataset shown, the estimates kept per image (the toolkit's cap).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_estimates_per_image: Option<BTreeMap<String, usize>>,
     /// 2D boards: the keys of the AP/AR numbers, in COCOeval's order (each cell's `stats`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub stat_names: Vec<&'static str>,
@@ -167,6 +171,9 @@ pub fn score_name(p: BoardProtocol) -> &'static str {
         BoardProtocol::Pose(ProtocolName::Bop19) => {
             "average recall AR = (AR_VSD + AR_MSSD + AR_MSPD) / 3"
         }
+        BoardProtocol::Bop24 => {
+            "bop24_mAP = (mAP_MSSD + mAP_MSPD) / 2, average precision of 6D detection (the objects and instances of an image are not given)"
+        }
         BoardProtocol::Coco(CocoProtocol::Detection) => {
             "AP of the amodal boxes (COCOeval bbox: mean over IoU 0.50:0.05:0.95, 101 recall points, 100 detections per image); the average over the core datasets is AP_C"
         }
@@ -192,7 +199,12 @@ pub async fn leaderboard(
                 reports.iter().map(|(m, r)| (m.clone(), r)).collect();
             vec![chart::precision_recall_of_methods(&reports)]
         }
-        Some(Curves::Coco(_)) | None => Vec::new(),
+        Some(Curves::Bop24(reports)) if !reports.is_empty() => {
+            let reports: Vec<(String, &DetectionReport)> =
+                reports.iter().map(|(m, r)| (m.clone(), r)).collect();
+            vec![chart::detection_precision_recall_of_methods(&reports)]
+        }
+        Some(Curves::Coco(_) | Curves::Bop24(_)) | None => Vec::new(),
     };
     let curve_choices = if board.selected.is_some() {
         curve_choices(&board.ranked, &board.drawn, filter)
@@ -208,8 +220,18 @@ pub async fn leaderboard(
         },
         parameters: match protocol {
             BoardProtocol::Pose(p) => Some(parameters(&Protocol::named(p)).as_defined()),
-            BoardProtocol::Coco(_) => None,
+            BoardProtocol::Bop24 | BoardProtocol::Coco(_) => None,
         },
+        max_estimates_per_image: (protocol == BoardProtocol::Bop24).then(|| {
+            board
+                .columns
+                .iter()
+                .map(|d| {
+                    let cap = evaluator::detection::default_max_estimates_per_image(&d.name);
+                    (d.name.clone(), cap)
+                })
+                .collect()
+        }),
         stat_names: board.stat_names,
         core: board.core.into_iter().map(|d| d.name).collect(),
         columns: board.columns,
@@ -285,6 +307,13 @@ pub struct SubmissionView {
     /// A 2D task's report (the keys of `poseboard eval --protocol bop22-det|bop22-seg --out`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coco: Option<CocoReport>,
+    /// A bop24 submission's report (the keys of `poseboard eval --protocol bop24 --out`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bop24: Option<DetectionReport>,
+    /// A bop24 submission's per-object AP as its board shows it (see
+    /// [`leaderboard::bop24_objects`]), with the object's AP under each error of the report.
+    #[serde(skip)]
+    pub bop24_objects: Vec<Bop24Object>,
     /// Per protocol with a public entry: the method's entry on this dataset, and whether it is
     /// this submission.
     pub entries: Vec<EntryStatus>,
@@ -298,6 +327,37 @@ pub struct SubmissionView {
     pub owner: Option<OwnerLinks>,
     #[serde(skip)]
     pub charts: Vec<Chart>,
+}
+
+/// A row of a bop24 submission's per-object table.
+#[derive(Clone, Debug)]
+pub struct Bop24Object {
+    pub obj_id: i64,
+    /// The mean of its MSSD and MSPD APs, as the board shows it.
+    pub ap: f64,
+    /// Its AP under each error, in the report's order (none where it has no counted instance).
+    pub per_error: Vec<Option<f64>>,
+}
+
+/// The per-object table of a bop24 report.
+fn bop24_objects(r: &DetectionReport) -> Vec<Bop24Object> {
+    leaderboard::bop24_objects(r)
+        .into_iter()
+        .map(|(obj_id, ap)| Bop24Object {
+            obj_id,
+            ap,
+            per_error: r
+                .errors
+                .iter()
+                .map(|e| {
+                    e.objects
+                        .iter()
+                        .find(|o| i64::from(o.obj_id) == obj_id)
+                        .map(|o| o.ap)
+                })
+                .collect(),
+        })
+        .collect()
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -369,6 +429,12 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
     };
     let mut charts: Vec<Chart> = details.reports.iter().flat_map(chart::charts).collect();
     charts.extend(details.coco.as_ref().map(chart::precision_recall));
+    charts.extend(
+        details
+            .bop24
+            .as_ref()
+            .map(chart::detection_precision_recall),
+    );
     let entries = details
         .entries
         .into_iter()
@@ -404,6 +470,12 @@ pub async fn submission(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResu
             .map(|r| (r.protocol, r))
             .collect(),
         coco: details.coco,
+        bop24_objects: details
+            .bop24
+            .as_ref()
+            .map(bop24_objects)
+            .unwrap_or_default(),
+        bop24: details.bop24,
         charts,
     })
 }
@@ -422,7 +494,9 @@ fn preflight_text(s: &SubmissionRow) -> String {
             )
         })
         .collect();
-    let work = if s.task.is_some() {
+    let work = if s.task == Some(Task::Bop24) {
+        wording::count(p.estimates, "estimate", "estimates") + " under bop24"
+    } else if s.task.is_some() {
         wording::count(p.estimates, "detection", "detections")
     } else if evaluated.is_empty() {
         wording::count(p.estimates, "estimate", "estimates")

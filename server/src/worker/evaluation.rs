@@ -3,8 +3,10 @@
 //! copy, which must hash as the copy the server registered did: otherwise the work is refused,
 //! not failed, so that a worker with a bad copy spends no attempt of the user's.
 //!
-//! A BOP'22 2D file (its `task` set) is scored by `evaluator::coco` on the dataset's
-//! `scene_gt_coco.json`; its report is stored in `coco_scores`.
+//! A BOP'22 2D file (its `task` a 2D one) is scored by `evaluator::coco` on the dataset's
+//! `scene_gt_coco.json`; its report is stored in `coco_scores`. A bop24 file is scored by
+//! `evaluator::detection` on the dataset's `test_targets_bop24.json`, with the toolkit's cap of
+//! estimates per image for the dataset; its report is stored in `bop24_scores`.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -12,13 +14,14 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 use evaluator::coco;
+use evaluator::detection::{self, DetectionReport};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Progress, bootstrap, evaluate as evaluate_protocol, results};
 
 use crate::app::{AppState, Role};
 use crate::datasets;
 use crate::datasets::uploaded_file;
-use crate::domain::CocoProtocol;
+use crate::domain::{CocoProtocol, Task};
 use crate::error::Chain;
 use crate::store::pose_errors::NewErrors;
 use crate::store::queue::{Finished, FinishedCoco};
@@ -38,10 +41,15 @@ pub(super) enum JobError {
     Stopped,
 }
 
-/// What a job's evaluation gives: a 6D file's reports and errors, or a 2D file's report.
+/// What a job's evaluation gives: a 6D file's reports and errors, a 2D file's report, or a
+/// bop24 file's report.
 pub(super) enum Outcome {
     Pose(Finished),
     Coco(Box<FinishedCoco>),
+    Bop24 {
+        report: Box<DetectionReport>,
+        eval_ms: i64,
+    },
 }
 
 /// Evaluates `job` under `state` (its progress and its cancellation).
@@ -90,8 +98,12 @@ pub(super) async fn evaluate(
         .map_err(|e| JobError::Service(e.to_string()))?;
 
     let (dataset, dataset_hash) = (loaded.dataset, loaded.content_hash);
-    if let Some(task) = job.task {
-        return evaluate_coco(app, task, dataset.root.clone(), bytes, dataset_hash).await;
+    match job.task {
+        Some(Task::Coco(task)) => {
+            return evaluate_coco(app, task, dataset.root.clone(), bytes, dataset_hash).await;
+        }
+        Some(Task::Bop24) => return evaluate_bop24(app, &row, bytes, state).await,
+        None => {}
     }
     let protocols: Vec<ProtocolName> = job.protocols.clone();
     let (counter, started, cancel, taken) = (
@@ -177,6 +189,63 @@ async fn evaluate_coco(
                 eval_ms: clock.elapsed().as_millis() as i64,
                 dataset_hash,
             })))
+        })
+    })
+    .await
+    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
+}
+
+/// Scores a bop24 file on the evaluation threads, on the dataset loaded with its
+/// `test_targets_bop24.json`, keeping the toolkit's number of estimates per image for the
+/// dataset, with the job's progress and cancellation.
+async fn evaluate_bop24(
+    app: &AppState,
+    row: &crate::store::datasets::DatasetRow,
+    bytes: Vec<u8>,
+    state: &JobState,
+) -> Result<Outcome, JobError> {
+    let dataset = match app.bop24_dataset(row).await {
+        Ok(Some(dataset)) => dataset,
+        Ok(None) if app.role == Role::Worker => {
+            return Err(JobError::Refused(format!(
+                "this worker's copy of dataset `{}` has no test_targets_bop24.json",
+                row.name
+            )));
+        }
+        Ok(None) => {
+            return Err(JobError::Service(format!(
+                "dataset `{}` no longer has its test_targets_bop24.json",
+                row.name
+            )));
+        }
+        Err(e) => return Err(JobError::Service(Chain(&e).to_string())),
+    };
+    let (counter, started, cancel, taken) = (
+        state.counter.clone(),
+        state.started.clone(),
+        state.cancel.clone(),
+        state.taken_over.clone(),
+    );
+    let pool_app = app.clone();
+    tokio::task::spawn_blocking(move || {
+        pool_app.pool.install(|| {
+            let clock = Instant::now();
+            let results =
+                results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
+            started.fetch_add(1, Ordering::Relaxed);
+            let cap = detection::default_max_estimates_per_image(&dataset.name);
+            let report = detection::evaluate(&dataset, &results, cap, counter.as_ref(), &cancel)
+                .map_err(|e| match e {
+                    evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
+                        JobError::TakenOver
+                    }
+                    evaluator::Error::Cancelled => JobError::Stopped,
+                    other => JobError::Service(other.to_string()),
+                })?;
+            Ok(Outcome::Bop24 {
+                report: Box::new(report),
+                eval_ms: clock.elapsed().as_millis() as i64,
+            })
         })
     })
     .await

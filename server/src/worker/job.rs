@@ -45,6 +45,7 @@ impl Worker {
                     .sum(),
             )),
             Ok(Outcome::Coco(finished)) => Some(Some(finished.report.entries_evaluated as u64)),
+            Ok(Outcome::Bop24 { report, .. }) => Some(Some(report.estimates_evaluated as u64)),
             Err(JobError::User(_)) => Some(None),
             Err(JobError::Service(_)) if job.attempts >= MAX_ATTEMPTS => Some(None),
             Err(_) => None,
@@ -60,6 +61,12 @@ impl Worker {
             Ok(Outcome::Coco(finished)) => {
                 retry::persist(shutdown, "store the scores", None, || {
                     app.store.finish_coco(id, worker, &finished)
+                })
+                .await
+            }
+            Ok(Outcome::Bop24 { report, eval_ms }) => {
+                retry::persist(shutdown, "store the scores", None, || {
+                    app.store.finish_bop24(id, worker, &report, eval_ms)
                 })
                 .await
             }

@@ -35,7 +35,7 @@ impl Worker {
         };
         let stored = match outcome {
             // Never flagged (see `Store::flag_rescoring`); let go, counted, should one be.
-            Ok(Outcome::Coco(_)) => let_go(true).await,
+            Ok(Outcome::Coco(_) | Outcome::Bop24 { .. }) => let_go(true).await,
             Ok(Outcome::Pose(finished)) => {
                 match retry::persist(&self.shutdown, "store the new scores", None, || {
                     app.store.finish_rescore(id, worker, &finished)

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::common::{eval_report, fixtures, poseboard};
 use serde_json::Value;
 
-const KEYS: [&str; 7] = [
+pub(crate) const KEYS: [&str; 7] = [
     "bop24_mAP",
     "bop24_mAP_mssd",
     "bop24_mAP_mssd_mm",
@@ -22,7 +22,7 @@ fn bop24() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/bop24")
 }
 
-fn result_file(case: &str) -> PathBuf {
+pub(crate) fn result_file(case: &str) -> PathBuf {
     bop24()
         .join("results")
         .join(format!("{case}_synthA-test.csv"))
@@ -35,7 +35,7 @@ fn expected(case: &str) -> Value {
 
 /// A folder of datasets whose `synthA` is the reference dataset with its bop24 targets file
 /// next to its own files (linked).
-fn datasets(dir: &Path) -> PathBuf {
+pub(crate) fn datasets(dir: &Path) -> PathBuf {
     let root = dir.join("datasets");
     let synth = root.join("synthA");
     std::fs::create_dir_all(&synth).expect("mkdir");

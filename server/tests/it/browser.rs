@@ -317,8 +317,8 @@ async fn menu_follows_sign_in(c: &Client, signed_in: bool) {
 /// small images so that it is quick to make and to score.
 const WIDE: &str = "synth30";
 
-/// Writes [`WIDE`] into `datasets`, and demo result files for it into `dir`: a 6D file and the
-/// 2D detector's and segmenter's, each with the task it is for.
+/// Writes [`WIDE`] into `datasets`, and demo result files for it into `dir`: a 6D file (for
+/// bop19 and for bop24) and the 2D detector's and segmenter's, each with the task it is for.
 fn wide_dataset(datasets: &Path, dir: &Path) -> Vec<(PathBuf, &'static str)> {
     let dataset = datasets.join(WIDE);
     let run = |args: &[&str], paths: &[&Path]| {
@@ -351,8 +351,10 @@ fn wide_dataset(datasets: &Path, dir: &Path) -> Vec<(PathBuf, &'static str)> {
     run(&["dataset", "demo-results", "--coco"], &[&dataset, &coco]);
     let named = |folder: &Path, file: &str| folder.join(format!("{file}_{WIDE}-test"));
     vec![
-        // One 6D file is enough for a board with a column per object.
+        // One 6D file is enough for a board with a column per object; the same file scored
+        // for 6D detection fills the bop24 board's (the dataset has its BOP'24 targets).
         (named(&poses, "demo-precise").with_extension("csv"), "bop19"),
+        (named(&poses, "demo-precise").with_extension("csv"), "bop24"),
         (
             named(&coco, "demo-detector").with_extension("json"),
             "bop22-det",
@@ -367,7 +369,7 @@ fn wide_dataset(datasets: &Path, dir: &Path) -> Vec<(PathBuf, &'static str)> {
 /// Every board: each protocol over all core datasets and on each dataset, the wide one too.
 fn every_board(base: &str) -> Vec<String> {
     let mut boards = Vec::new();
-    for protocol in ["bop19", "eccv18", "bop22-det", "bop22-seg"] {
+    for protocol in ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] {
         boards.push(format!("{base}/leaderboards/{protocol}"));
         for dataset in ["synthA", WIDE] {
             boards.push(format!("{base}/leaderboards/{protocol}?dataset={dataset}"));

@@ -54,8 +54,11 @@ fn first_start(kind: Db) {
         let rows = board_methods(&get_json(&format!("{base}/api/v1/leaderboards/{task}")));
         assert_eq!(rows.len(), 1, "{task}: {rows:?}");
     }
+    // The demo 6D detector, scored at start, is on the bop24 board.
+    let detection = board_methods(&get_json(&format!("{base}/api/v1/leaderboards/bop24")));
+    assert_eq!(detection, ["demo-6d-detector"], "the bop24 board");
     assert_eq!(
-        pose.len() + 2,
+        pose.len() + 3,
         methods.len(),
         "every demo method is on a board"
     );

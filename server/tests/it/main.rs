@@ -14,6 +14,7 @@ mod accounts;
 mod admin;
 mod backup;
 mod board_cache;
+mod bop24;
 mod bop24_cli;
 mod browser;
 mod challenge_datasets;

@@ -50,11 +50,11 @@ fn the_first_hour_has_no_rough_edges() {
         std::thread::sleep(Duration::from_millis(100));
     }
 
-    // The menu of every page lists the 2D boards.
+    // The menu of every page lists the 6D detection and 2D boards.
     let home = client().get(format!("{base}/")).send().expect("home");
     let home = home.text().expect("page");
     let nav = &home[home.find("<nav>").expect("nav")..home.find("</nav>").expect("/nav")];
-    for board in ["bop19", "eccv18", "bop22-det", "bop22-seg"] {
+    for board in ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] {
         assert!(
             nav.contains(&format!("href=\"/leaderboards/{board}\"")),
             "{board} in the menu: {nav}"

@@ -9,8 +9,8 @@ use crate::common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
-    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, TokenLabel, UserId,
-    UserName, Visibility,
+    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, Task, TokenLabel,
+    UserId, UserName, Visibility,
 };
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
@@ -401,6 +401,126 @@ fn submissions_queue_and_scores(kind: Db) {
     });
 }
 both_databases!(submissions_queue_and_scores);
+
+/// A bop24 report of the BOP'24 fixture's `case` file on the reference dataset.
+fn bop24_report(case: &str) -> evaluator::detection::DetectionReport {
+    let targets = fixtures().join("../bop24/test_targets_bop24.json");
+    let opts = evaluator::dataset::DatasetOptions {
+        targets_file: targets.display().to_string(),
+        ..Default::default()
+    };
+    let dataset = Dataset::load_with(&fixtures().join("dataset"), &opts).expect("dataset");
+    let file = fixtures().join(format!("../bop24/results/{case}_synthA-test.csv"));
+    let results = load_results(&file).expect("results");
+    evaluator::detection::evaluate(
+        &dataset,
+        &results,
+        100,
+        &NoProgress,
+        &AtomicBool::new(false),
+    )
+    .expect("evaluates")
+}
+
+/// bop24 submissions: the task is kept and tells the same file apart from a bop19 one; the
+/// report stored when the job is done reads back typed and equal; the board ranks by
+/// bop24_mAP, and a report that counted nothing (its mAPs NaN, stored as NULL) reads back and
+/// ranks last on both databases.
+fn bop24_scores(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_bop24");
+    let (exact, noisy) = (bop24_report("gtexact"), bop24_report("noisy"));
+    let mut nothing = noisy.clone();
+    for v in [
+        &mut nothing.bop24_map,
+        &mut nothing.bop24_map_mssd,
+        &mut nothing.bop24_map_mssd_mm,
+        &mut nothing.bop24_map_mspd,
+        &mut nothing.bop25_map,
+        &mut nothing.bop25_map_mm,
+    ] {
+        *v = f64::NAN;
+    }
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let ds = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
+        let owner = user(&store, "alice").await;
+        let mut ids = Vec::new();
+        for (method, report) in [("exact", &exact), ("noisy", &noisy), ("nothing", &nothing)] {
+            let f = fixture(method);
+            let new = NewSubmission {
+                task: Some(Task::Bop24),
+                ..new_submission(&f, owner, ds.id, "bbbb", &[])
+            };
+            let Created::New(id) = store.create_submission(&new, None).await.unwrap() else {
+                panic!("a new submission");
+            };
+            let row = store.submission(id).await.unwrap().expect("stored");
+            assert_eq!((row.task, row.protocols.len()), (Some(Task::Bop24), 0));
+            let job = store
+                .claim("w1", 60_000, 3, &[])
+                .await
+                .unwrap()
+                .expect("a job");
+            assert_eq!(job.id, id);
+            assert!(!store.finish_bop24(id, "w2", report, 10).await.unwrap());
+            assert!(store.finish_bop24(id, "w1", report, 10).await.unwrap());
+            // Finishing again (its first answer lost) is no second row.
+            assert!(store.finish_bop24(id, "w1", report, 10).await.unwrap());
+            let done = store.submission(id).await.unwrap().unwrap();
+            assert_eq!(done.status, Status::Done);
+            assert_eq!(done.work, report.estimates_evaluated as i64);
+            ids.push(id);
+        }
+        // The same file for the same method under bop19 is another submission.
+        let f = fixture("exact");
+        let as_bop19 = new_submission(&f, owner, ds.id, "bbbb", &[ProtocolName::Bop19]);
+        assert!(matches!(
+            store.create_submission(&as_bop19, None).await.unwrap(),
+            Created::New(other) if other != ids[0]
+        ));
+        assert_eq!(
+            store.bop24_report(ids[0]).await.unwrap(),
+            Some(exact.clone())
+        );
+        assert_eq!(
+            store.bop24_report(ids[1]).await.unwrap(),
+            Some(noisy.clone())
+        );
+        let stored = store.bop24_report(ids[2]).await.unwrap().expect("stored");
+        assert!(stored.bop24_map.is_nan() && stored.bop25_map_mm.is_nan());
+        assert_eq!(stored.errors, nothing.errors);
+
+        let board = store.bop24_leaderboard(None).await.unwrap();
+        let order: Vec<SubmissionId> = board.iter().map(|e| e.submission_id).collect();
+        assert_eq!(
+            order, ids,
+            "exact, noisy, then the one that counted nothing"
+        );
+        assert!(exact.bop24_map > noisy.bop24_map);
+        assert_eq!(board[1].report, noisy);
+        assert_eq!(
+            board[0].time_avg,
+            Some(exact.bop24_average_time_per_image).filter(|t| *t >= 0.0)
+        );
+        assert_eq!(
+            store.bop24_entry(board[1].method_id, ds.id).await.unwrap(),
+            Some((ids[1], false))
+        );
+        let mut mine = store.bop24_scores_of_owner(owner).await.unwrap();
+        mine.sort_by_key(|m| m.0);
+        assert_eq!(
+            mine,
+            [(ids[0], exact.bop24_map), (ids[1], noisy.bop24_map)],
+            "a score only where one was counted"
+        );
+    });
+}
+
+both_databases!(bop24_scores);
 
 fn fair_use_is_exact_under_concurrency(kind: Db) {
     let dir = tempfile::tempdir().unwrap();

@@ -13,11 +13,12 @@ use reqwest::blocking::{Client, multipart};
 use serde_json::Value;
 
 /// Every value the upload's `protocol` field takes, and the kinds of file it reads.
-const TASKS: [&str; 6] = [
+const TASKS: [&str; 7] = [
     "",
     "bop19",
     "eccv18",
     "bop19,eccv18",
+    "bop24",
     "bop22-det",
     "bop22-seg",
 ];

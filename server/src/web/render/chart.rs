@@ -1,10 +1,11 @@
-//! Recall curves (the paper's Fig. 5) and the 2D tasks' precision-recall curves as
+//! Recall curves (the paper's Fig. 5) and the 2D tasks' and bop24's precision-recall curves as
 //! server-rendered SVG: the geometry is computed here and
 //! the template only places it, so pages need no JavaScript and no plotting crate (plotters'
 //! defaults need fontconfig).
 
 use evaluator::Report;
 use evaluator::coco::CocoReport;
+use evaluator::detection::{DetectionError, DetectionReport};
 use evaluator::report::VisibBin;
 
 /// Plot area inside the SVG viewBox (0 0 360 240).
@@ -208,6 +209,57 @@ pub fn precision_recall_of_methods(reports: &[(String, &CocoReport)]) -> Chart {
         reports
             .iter()
             .map(|(label, r)| (label.clone(), pr_points(&r.precision_recall.iou_mean)))
+            .collect(),
+    )
+}
+
+/// How a bop24 error is named in a legend.
+fn detection_label(error: DetectionError) -> &'static str {
+    match error {
+        DetectionError::Mssd => "MSSD (0.05..0.5 x diameter)",
+        DetectionError::MssdMm => "MSSD (2..20 mm)",
+        DetectionError::Mspd => "MSPD (5..50 px)",
+    }
+}
+
+/// The precision-recall curves of a bop24 report, one per error (averaged over its objects and
+/// thresholds, as its mAP averages them); an error that counted nothing has none.
+pub fn detection_precision_recall(report: &DetectionReport) -> Chart {
+    pr_chart(
+        "Precision vs recall (bop24)",
+        report
+            .errors
+            .iter()
+            .filter(|e| !e.precision_recall.is_empty())
+            .map(|e| {
+                (
+                    detection_label(e.error).to_string(),
+                    pr_points(&e.precision_recall),
+                )
+            })
+            .collect(),
+    )
+}
+
+/// The bop24 board's precision-recall curves: each labelled report's MSSD and MSPD curves
+/// averaged (the curve bop24_mAP is the mean of), one series per method.
+pub fn detection_precision_recall_of_methods(reports: &[(String, &DetectionReport)]) -> Chart {
+    pr_chart(
+        "Precision vs recall, mean of MSSD and MSPD",
+        reports
+            .iter()
+            .map(|(label, r)| {
+                let curve = |error: DetectionError| {
+                    r.errors
+                        .iter()
+                        .find(|e| e.error == error)
+                        .map(|e| e.precision_recall.clone())
+                        .unwrap_or_default()
+                };
+                let (mssd, mspd) = (curve(DetectionError::Mssd), curve(DetectionError::Mspd));
+                let mean: Vec<f64> = mssd.iter().zip(&mspd).map(|(a, b)| (a + b) / 2.0).collect();
+                (label.clone(), pr_points(&mean))
+            })
             .collect(),
     )
 }

@@ -53,12 +53,21 @@ impl Export {
                     "rows": board.rows,
                 });
                 // A 2D board's parameters are COCOeval's; its numbers are named in `stats`.
+                // BOP'24's are its errors with their thresholds and the visibility below which
+                // ground truth is not counted.
                 let parameters = match board.protocol {
                     BoardProtocol::Pose(_) => json!(board.parameters),
+                    BoardProtocol::Bop24 => json!({
+                        "errors": evaluator::detection::DetectionError::ALL
+                            .iter()
+                            .map(|e| json!({"name": e.name(), "thresholds": e.thresholds()}))
+                            .collect::<Vec<_>>(),
+                        "visib_gt_min": evaluator::detection::VISIB_GT_MIN,
+                    }),
                     BoardProtocol::Coco(t) => json!(t.task().parameters()),
                 };
                 out["parameters"] = parameters;
-                if board.protocol.is_coco() {
+                if !board.stat_names.is_empty() {
                     out["stats"] = json!(board.stat_names);
                 }
                 serde_json::to_vec_pretty(&out)
@@ -137,6 +146,12 @@ const POSE_NUMBERS: [&str; 6] = ["score", "recall", "ar_vsd", "ar_mssd", "ar_msp
 fn numbers(board: &Leaderboard) -> Vec<&'static str> {
     match board.protocol {
         BoardProtocol::Pose(_) => POSE_NUMBERS.to_vec(),
+        BoardProtocol::Bop24 => {
+            let mut names = vec!["bop24_mAP"];
+            names.extend(board.stat_names.iter().copied());
+            names.push("time");
+            names
+        }
         BoardProtocol::Coco(_) => {
             let mut names = board.stat_names.clone();
             names.extend(["time", "ci95_low", "ci95_high"]);
@@ -156,6 +171,12 @@ fn number_fields(board: &Leaderboard, c: &BoardCell) -> Vec<String> {
             number(c.ar_mspd),
             number(c.time),
         ],
+        BoardProtocol::Bop24 => {
+            let mut values = vec![c.score.to_string()];
+            values.extend(board.stat_names.iter().map(|k| number(c.stat(k))));
+            values.push(number(c.time));
+            values
+        }
         BoardProtocol::Coco(_) => {
             let mut values: Vec<String> =
                 board.stat_names.iter().map(|k| number(c.stat(k))).collect();
@@ -337,7 +358,7 @@ fn latex(board: &Leaderboard) -> String {
     let what = match board.protocol {
         BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
         BoardProtocol::Pose(ProtocolName::Bop19) => "average recall",
-        BoardProtocol::Coco(_) => "average precision",
+        BoardProtocol::Bop24 | BoardProtocol::Coco(_) => "average precision",
     };
     let mut out = String::new();
     let _ = writeln!(

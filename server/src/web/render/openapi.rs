@@ -13,7 +13,7 @@ fn paths() -> Value {
     let id_param =
         json!({ "name": "id", "in": "path", "required": true, "schema": { "type": "integer" } });
     let export_params = json!([
-        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
+        { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] } },
         { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
         { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
         { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
@@ -83,7 +83,7 @@ fn paths() -> Value {
                         "properties": {
                             "method": { "type": "string", "maxLength": 100 },
                             "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
-                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop19,eccv18", "bop22-det", "bop22-seg"], "description": "default: a CSV file is scored under bop19 and eccv18, its pre-flight warning about bop19's selection only (`bop19,eccv18` for both's); for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop19,eccv18", "bop24", "bop22-det", "bop22-seg"], "description": "default: a CSV file is scored under bop19 and eccv18, its pre-flight warning about bop19's selection only (`bop19,eccv18` for both's); bop24: a CSV file scored for 6D detection (average precision on the images of the dataset's test_targets_bop24.json, the toolkit's cap of estimates per image; 400 naming the file when the dataset has none); for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
                             "description": { "type": "string" },
                             "paper_url": { "type": "string" },
                             "code_url": { "type": "string" },
@@ -165,9 +165,9 @@ fn paths() -> Value {
                 "parameters": [{ "name": "dataset", "in": "query", "required": true, "schema": { "type": "string" }, "description": "a served dataset's name" }],
                 "responses": { "200": { "description": "{dataset, limit (null: no limit), window_secs, used, left (null: no limit), next_at (epoch ms, when none is left), next_at_utc (the same as \"2026-12-04 17:20 UTC\"), summary (in words, as the upload form and the CLI say it)}" },
                     "400": { "description": "no or an unknown dataset (the message lists the served ones)" }, "401": { "description": "no valid API token or session" } } } },
-            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or 2D task (bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
+            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or task (bop24: ranked by bop24_mAP, every cell's `stats` its parts; bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
                 "parameters": [
-                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] } },
+                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] } },
                     { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
                     { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
                     { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
@@ -198,7 +198,7 @@ fn paths() -> Value {
             "/api/v1/snapshots/{id}": { "get": { "summary": "One board of a snapshot: the bytes the leaderboard's JSON served when the snapshot was taken, unchanged since",
                 "parameters": [
                     id_param,
-                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop22-det", "bop22-seg"] }, "description": "default: bop19" },
+                    { "name": "protocol", "in": "query", "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] }, "description": "default: bop19" },
                     { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset's board; default: all datasets" }
                 ],
                 "responses": { "200": { "description": "the body /api/v1/leaderboards/{protocol} answered then" }, "404": { "description": "no such snapshot or board" } } } },

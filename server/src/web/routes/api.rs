@@ -15,7 +15,7 @@ use serde_json::json;
 
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
-use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Visibility};
+use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Task, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, quota, submit};
 use crate::service::{catalogue, downloads, methods, publishing};
@@ -277,8 +277,8 @@ async fn file(
 ) -> AppResult<Response> {
     let (s, bytes) = downloads::file(&app, owner_or_missing(&viewer)?, id).await?;
     let content_type = match s.task {
-        Some(_) => "application/json",
-        None => "text/csv; charset=utf-8",
+        Some(Task::Coco(_)) => "application/json",
+        Some(Task::Bop24) | None => "text/csv; charset=utf-8",
     };
     Ok(attachment(content_type, &s.file_name, bytes))
 }
@@ -291,9 +291,10 @@ async fn report(
     Path(id): Path<SubmissionId>,
 ) -> AppResult<Response> {
     let view = views::submission(&app, id, &viewer).await?;
-    // Keyed by protocol: the 6D reports, or the 2D task's one.
-    let body = match (&view.coco, view.submission.task) {
-        (Some(report), Some(task)) => serde_json::to_vec(&json!({ task.as_str(): report })),
+    // Keyed by protocol: the 6D reports, or the task's one.
+    let body = match (&view.coco, &view.bop24, view.submission.task) {
+        (Some(report), _, Some(task)) => serde_json::to_vec(&json!({ task.as_str(): report })),
+        (_, Some(report), Some(task)) => serde_json::to_vec(&json!({ task.as_str(): report })),
         _ => serde_json::to_vec(&view.scores),
     }
     .map_err(|e| AppError::failed("writing the report JSON", e))?;

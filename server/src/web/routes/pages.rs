@@ -80,6 +80,17 @@ pub(crate) mod filters {
             **self
         }
     }
+    /// A mean that is NaN when nothing was counted (bop24's mAPs) is missing too.
+    impl MaybeScore for f64 {
+        fn get(&self) -> Option<f64> {
+            Some(*self).filter(|v| v.is_finite())
+        }
+    }
+    impl MaybeScore for &f64 {
+        fn get(&self) -> Option<f64> {
+            (*self).get()
+        }
+    }
 
     #[askama::filter_fn]
     pub fn opt_pct(v: impl MaybeScore, _: &dyn askama::Values) -> askama::Result<String> {
@@ -150,7 +161,7 @@ pub(crate) fn site_url(app: &AppState, headers: &HeaderMap) -> String {
 #[template(path = "leaderboard.html")]
 pub(crate) struct LeaderboardPage {
     pub(crate) board: Leaderboard,
-    pub(crate) protocols: [BoardProtocol; 4],
+    pub(crate) protocols: [BoardProtocol; 5],
     /// The snapshot this page is kept in, if it is: its links then lead to the snapshot's own
     /// stored boards and exports, and what a snapshot did not store (other orders, the
     /// filters, the live pages of methods and submissions) is not offered, so that a reader
@@ -346,6 +357,7 @@ impl MethodPage {
         match standing.protocol {
             BoardProtocol::Pose(ProtocolName::Bop19) => "AR",
             BoardProtocol::Pose(ProtocolName::Eccv18) => "recall",
+            BoardProtocol::Bop24 => "mAP",
             BoardProtocol::Coco(_) => "AP",
         }
     }

@@ -13,7 +13,7 @@ use tokio::io::AsyncWriteExt;
 
 use crate::app::App;
 use crate::domain::{
-    CocoProtocol, Description, Hardware, Link, MethodName, UploadTask, Visibility, optional,
+    Description, Hardware, Link, MethodName, Task, UploadTask, Visibility, optional,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Protocols, Upload, UploadedFile};
@@ -51,7 +51,7 @@ impl Fields {
         let method = MethodName::parse(&self.method)?;
         let (protocols, task) = match self.protocol.trim() {
             "" => (Protocols::asked(&[]), None),
-            p => match CocoProtocol::from_str(p) {
+            p => match Task::from_str(p) {
                 Ok(task) => (Protocols::default(), Some(task)),
                 Err(_) => {
                     // One protocol, or both as `bop19,eccv18`.

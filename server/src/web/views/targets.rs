@@ -14,7 +14,7 @@ use evaluator::protocol::{ErrorKind, Protocol, ProtocolName, columns, normalised
 use serde::{Deserialize, Serialize};
 
 use crate::app::App;
-use crate::domain::{CocoProtocol, MethodId, SubmissionId};
+use crate::domain::{CocoProtocol, MethodId, SubmissionId, Task};
 use crate::error::{AppError, AppResult};
 use crate::service::inspection;
 use crate::store::submissions::SubmissionRow;
@@ -586,9 +586,18 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
         )));
     }
     match (sa.task, sb.task) {
-        (Some(ta), Some(tb)) if ta == tb => {
+        (Some(Task::Coco(ta)), Some(Task::Coco(tb))) if ta == tb => {
             return Ok(Compared::Coco(Box::new(
                 compare_coco(app, &sa, &sb, ta).await?,
+            )));
+        }
+        (Some(Task::Bop24), Some(Task::Bop24)) => {
+            return Err(AppError::BadRequest(format!(
+                "submissions {ia} and {ib} are BOP'24 6D detections: they compare on the bop24 \
+                 board (/leaderboards/bop24?dataset={}), with their precision-recall curves \
+                 overlaid; side by side, target by target, compares the localization \
+                 protocols and the 2D tasks",
+                sa.dataset
             )));
         }
         (None, None) => {}

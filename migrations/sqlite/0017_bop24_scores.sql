@@ -1,0 +1,18 @@
+-- The scores of BOP'24 6D detection (`bop24`): one row per submission, apart from `scores`,
+-- whose columns are the localization protocols' recalls. A bop24 submission is marked by
+-- `bop24` in `submissions.protocols`. `map` (bop24_mAP) is what the board ranks by, NULL
+-- when no ground-truth instance was counted; the whole DetectionReport (every key, the
+-- per-object AP per error and threshold, the precision-recall curves) is kept as JSON.
+CREATE TABLE bop24_scores (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    submission_id INTEGER NOT NULL UNIQUE REFERENCES submissions(id) ON DELETE CASCADE,
+    map REAL,
+    map_mssd REAL,
+    map_mssd_mm REAL,
+    map_mspd REAL,
+    time_avg REAL,
+    estimates_evaluated INTEGER NOT NULL,
+    report_json TEXT NOT NULL,
+    created_at INTEGER NOT NULL
+);
+CREATE INDEX bop24_scores_map ON bop24_scores (map);
