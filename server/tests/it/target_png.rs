@@ -2,12 +2,14 @@
 //! draws shows the test image changed exactly on the silhouettes the evaluator's renderer gives
 //! for the object's ground-truth poses and for the estimates the protocol's n_top selects
 //! (computed here from the fixture files), in the documented colours; a private submission's
-//! picture is its owner's only, and unknown targets, suffixes and protocols answer 404.
+//! picture is its owner's only, and unknown targets, suffixes and protocols answer 404. The
+//! gallery's thumbnail (`?crop=object`) is the same picture cut to the object.
 
 use std::path::Path;
 
 use crate::common::{
     Db, TestDb, both_databases, client, fixtures, get_as, reference_datasets, start, upload_with,
+    wait_done,
 };
 use evaluator::Dataset;
 use evaluator::math::Pose;
@@ -42,6 +44,52 @@ fn mask(
         .flat_map(|y| (0..size.0).map(move |x| (x, y)))
         .map(|(x, y)| window.at(x, y) > 0.0)
         .collect()
+}
+
+/// Checks that `thumb`, the picture of target (scene 1, image 0, object 3) cut to the object, is
+/// `full`'s pixels in the box of the object's ground-truth silhouettes (rendered here) grown by
+/// a quarter of its longer side, at least 16 px, within the image.
+fn check_thumbnail(full: &[u8], thumb: &[u8]) {
+    let dataset = Dataset::load(&fixtures().join("dataset")).expect("fixture");
+    let size = dataset.image_size;
+    let image = &dataset.scenes[&1].images[&0];
+    let model = Model::new(&dataset.objects[&3].mesh);
+    let covered: Vec<bool> = image
+        .gt
+        .iter()
+        .filter(|g| g.obj_id == 3)
+        .map(|g| mask(&model, &g.pose, image, size))
+        .reduce(|a, b| a.iter().zip(&b).map(|(x, y)| *x || *y).collect())
+        .expect("instances");
+    let (w, h) = size;
+    let on: Vec<(u32, u32)> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| covered[(y * w + x) as usize])
+        .collect();
+    let x0 = on.iter().map(|p| p.0).min().expect("in view");
+    let x1 = on.iter().map(|p| p.0).max().expect("in view") + 1;
+    let y0 = on.iter().map(|p| p.1).min().expect("in view");
+    let y1 = on.iter().map(|p| p.1).max().expect("in view") + 1;
+    let margin = ((x1 - x0).max(y1 - y0) / 4).max(16);
+    let (x0, y0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
+    let (x1, y1) = ((x1 + margin).min(w), (y1 + margin).min(h));
+
+    let (fw, fh, f) = decode_png(full);
+    let (tw, th, t) = decode_png(thumb);
+    assert_eq!((fw, fh), size);
+    assert_eq!((tw, th), (x1 - x0, y1 - y0), "the box around the object");
+    assert!(tw * th < fw * fh / 4, "{tw} x {th} of {fw} x {fh}");
+    for y in 0..th {
+        for x in 0..tw {
+            let ti = 3 * (y * tw + x) as usize;
+            let fi = 3 * ((y0 + y) * fw + x0 + x) as usize;
+            assert_eq!(
+                t[ti..ti + 3],
+                f[fi..fi + 3],
+                "pixel {x},{y} of the thumbnail"
+            );
+        }
+    }
 }
 
 /// Checks the picture of target (scene 1, image 0, object 3) of `results` against the renderer's
@@ -139,6 +187,17 @@ fn target_png(kind: Db) {
         check_picture(&r.bytes().expect("png"), &file, keep);
     }
 
+    // The gallery's thumbnail: the same picture cut to the object.
+    let full = get_as(&url("1/0/3.png"), &server.token)
+        .bytes()
+        .expect("png");
+    let r = get_as(&url("1/0/3.png?crop=object"), &server.token);
+    assert_eq!(r.status(), 200);
+    check_thumbnail(&full, &r.bytes().expect("png"));
+    let r = get_as(&url("1/0/3.png?crop=scene"), &server.token);
+    assert_eq!(r.status(), 400);
+    assert!(r.text().expect("text").contains("`object`"));
+
     // Private: nobody else sees it, not even that it exists.
     let anonymous = client().get(url("1/0/3.png")).send().expect("answered");
     assert_eq!(anonymous.status(), 404);
@@ -186,6 +245,15 @@ fn target_png(kind: Db) {
             .status(),
         200
     );
+    // The targets page's gallery shows the thumbnails cut to the object.
+    wait_done(&server.base, public, std::time::Duration::from_secs(120));
+    let page = client()
+        .get(format!("{}/submissions/{public}/targets", server.base))
+        .send()
+        .expect("answered")
+        .text()
+        .expect("html");
+    assert!(page.contains(".png?crop=object\""), "{page}");
     assert_eq!(
         client()
             .get(public_url("?protocol=eccv18"))

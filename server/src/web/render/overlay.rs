@@ -2,7 +2,7 @@
 //! shows and its colours), as a PNG. What it is drawn from is the service's
 //! ([`inspection::picture_inputs`]); the picture is drawn and encoded on the evaluation threads.
 
-use evaluator::overlay::{RgbImage, target_picture};
+use evaluator::overlay::{RgbImage, target_picture, target_thumbnail};
 use evaluator::protocol::{Protocol, ProtocolName};
 
 use crate::app::App;
@@ -14,19 +14,26 @@ use crate::web::auth::Viewer;
 
 /// The PNG of `target` for submission `id` as `viewer` may see it (see
 /// [`inspection::picture_inputs`]). The estimates drawn are those the evaluation under
-/// `protocol` considers (its n_top); without one, under the submission's first protocol.
+/// `protocol` considers (its n_top); without one, under the submission's first protocol. With
+/// `thumbnail`, the picture is cut to the object (a gallery's small pictures).
 pub async fn target_png(
     app: &App,
     viewer: &Viewer,
     id: SubmissionId,
     target: TargetId,
     protocol: Option<ProtocolName>,
+    thumbnail: bool,
 ) -> AppResult<Vec<u8>> {
     let inputs =
         inspection::picture_inputs(app, viewer.user.as_ref(), id, target, protocol).await?;
     app.on_pool("drawing the picture", move || {
         let n_top = Protocol::named(inputs.protocol).n_top;
-        let picture = target_picture(&inputs.dataset, &inputs.results, &inputs.target, n_top)
+        let draw = if thumbnail {
+            target_thumbnail
+        } else {
+            target_picture
+        };
+        let picture = draw(&inputs.dataset, &inputs.results, &inputs.target, n_top)
             .map_err(|e| AppError::failed("drawing a target picture", e))?;
         encode(&picture)
     })

@@ -326,6 +326,8 @@ async fn errors(
 #[derive(Deserialize)]
 struct PictureQuery {
     protocol: Option<String>,
+    /// `object`: the picture cut to the object, for a gallery.
+    crop: Option<String>,
 }
 
 /// A target seen through a submission, as `{obj_id}.png` (the router cannot match a segment
@@ -344,12 +346,21 @@ async fn target_picture(
         .protocol
         .map(|p| ProtocolName::from_str(&p).map_err(|_| AppError::NotFound))
         .transpose()?;
+    let thumbnail = match q.crop.as_deref() {
+        None => false,
+        Some("object") => true,
+        Some(other) => {
+            return Err(AppError::BadRequest(format!(
+                "`crop` is `{other}`: the only crop is `object` (the picture cut to the object)"
+            )));
+        }
+    };
     let target = TargetId {
         scene_id,
         im_id,
         obj_id,
     };
-    let png = overlay::target_png(&app, &viewer, id, target, protocol).await?;
+    let png = overlay::target_png(&app, &viewer, id, target, protocol, thumbnail).await?;
     Ok((
         [(header::CONTENT_TYPE, HeaderValue::from_static("image/png"))],
         png,
