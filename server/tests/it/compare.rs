@@ -471,7 +471,7 @@ fn compare_and_inspect_targets(kind: Db) {
         page.contains(&format!("href=\"/submissions/{a}/targets/")),
         "{page}"
     );
-    assert!(page.contains(".png\""), "{page}");
+    assert!(page.contains(".png?crop=object\""), "{page}");
     // The submission's page links the gallery and offers b to compare with, not alice's.
     let (_, page) = get(&server, &format!("/submissions/{a}"), "");
     assert!(page.contains(&format!("href=\"/submissions/{a}/targets\"")));
