@@ -377,6 +377,18 @@ async fn check(
     })
     .await
     .map_err(|e| AppError::failed("checking a result file", e))?;
+    checked_csv(file, row.id, None, parsed)
+}
+
+/// What the CSV checks of [`check`] and [`check_bop24`] share once the file is parsed and
+/// pre-flighted: a parse failure refused line by line, an empty file refused, else the file
+/// kept for its task.
+fn checked_csv(
+    file: UploadedFile,
+    dataset_id: DatasetId,
+    task: Option<Task>,
+    parsed: Result<(usize, Preflight), evaluator::Error>,
+) -> AppResult<Checked> {
     let (estimates_count, preflight) = match parsed {
         Ok(r) => r,
         Err(evaluator::Error::Results(problems)) => {
@@ -392,8 +404,8 @@ async fn check(
     }
     Ok(Checked {
         file,
-        dataset_id: row.id,
-        task: None,
+        dataset_id,
+        task,
         estimates_count,
         preflight,
     })
@@ -524,26 +536,7 @@ async fn check_bop24(
     })
     .await
     .map_err(|e| AppError::failed("checking a result file", e))?;
-    let (estimates_count, preflight) = match parsed {
-        Ok(r) => r,
-        Err(evaluator::Error::Results(problems)) => {
-            return Err(line_problems(&file.name, &problems));
-        }
-        Err(e) => return Err(AppError::failed("reading a result file", e)),
-    };
-    if estimates_count == 0 {
-        return Err(AppError::Invalid {
-            message: format!("{} contains no estimate", file.name),
-            problems: Vec::new(),
-        });
-    }
-    Ok(Checked {
-        file,
-        dataset_id: row.id,
-        task: Some(Task::Bop24),
-        estimates_count,
-        preflight,
-    })
+    checked_csv(file, row.id, Some(Task::Bop24), parsed)
 }
 
 /// The problems of a refused BOP'22 file, each naming its entry (from 0) and key.
