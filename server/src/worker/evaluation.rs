@@ -112,45 +112,60 @@ pub(super) async fn evaluate(
         state.cancel.clone(),
         state.taken_over.clone(),
     );
-    let pool_app = app.clone();
-    tokio::task::spawn_blocking(move || {
-        pool_app.pool.install(|| {
-            let clock = Instant::now();
-            let results =
-                results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
-            let mut reports = Vec::with_capacity(protocols.len());
-            let mut errors = Vec::with_capacity(protocols.len());
-            let mut replicates = BTreeMap::new();
-            for name in protocols {
-                started.fetch_add(1, Ordering::Relaxed);
-                let protocol = Protocol::named(name);
-                let mut evaluation =
-                    evaluate_protocol(&dataset, &results, &protocol, counter.as_ref(), &cancel)
-                        .map_err(|e| match e {
-                            evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
-                                JobError::TakenOver
-                            }
-                            evaluator::Error::Cancelled => JobError::Stopped,
-                            other => JobError::Service(other.to_string()),
-                        })?;
-                errors.push(error_rows(name, &evaluation)?);
-                let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
-                if let Some(b) = evaluation.bootstrap(seed, bootstrap::REPLICATES) {
-                    replicates.insert(name, b.replicates);
-                }
-                reports.push(evaluation.report);
+    on_pool(app, move |clock| {
+        let results =
+            results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
+        let mut reports = Vec::with_capacity(protocols.len());
+        let mut errors = Vec::with_capacity(protocols.len());
+        let mut replicates = BTreeMap::new();
+        for name in protocols {
+            started.fetch_add(1, Ordering::Relaxed);
+            let protocol = Protocol::named(name);
+            let mut evaluation =
+                evaluate_protocol(&dataset, &results, &protocol, counter.as_ref(), &cancel)
+                    .map_err(|e| ended(e, &taken))?;
+            errors.push(error_rows(name, &evaluation)?);
+            let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
+            if let Some(b) = evaluation.bootstrap(seed, bootstrap::REPLICATES) {
+                replicates.insert(name, b.replicates);
             }
-            Ok(Outcome::Pose(Finished {
-                reports,
-                errors,
-                replicates,
-                eval_ms: clock.elapsed().as_millis() as i64,
-                dataset_hash,
-            }))
-        })
+            reports.push(evaluation.report);
+        }
+        Ok(Outcome::Pose(Finished {
+            reports,
+            errors,
+            replicates,
+            eval_ms: elapsed_ms(clock),
+            dataset_hash,
+        }))
     })
     .await
-    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
+}
+
+/// Runs `work` on the evaluation threads, never on the async ones, handing it the clock its
+/// `eval_ms` is measured from; a panic in the evaluator ends the job as the service's fault.
+async fn on_pool(
+    app: &AppState,
+    work: impl FnOnce(Instant) -> Result<Outcome, JobError> + Send + 'static,
+) -> Result<Outcome, JobError> {
+    let pool_app = app.clone();
+    tokio::task::spawn_blocking(move || pool_app.pool.install(|| work(Instant::now())))
+        .await
+        .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
+}
+
+fn elapsed_ms(clock: Instant) -> i64 {
+    clock.elapsed().as_millis() as i64
+}
+
+/// How an evaluation's error ends the job: a cancellation is a takeover when another worker
+/// owns the job now, else this process stopping; anything else is the service's fault.
+fn ended(e: evaluator::Error, taken: &AtomicBool) -> JobError {
+    match e {
+        evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => JobError::TakenOver,
+        evaluator::Error::Cancelled => JobError::Stopped,
+        other => JobError::Service(other.to_string()),
+    }
 }
 
 /// Scores a BOP'22 2D file on the evaluation threads: the dataset's ground truth is read for
@@ -164,35 +179,29 @@ async fn evaluate_coco(
     bytes: Vec<u8>,
     dataset_hash: String,
 ) -> Result<Outcome, JobError> {
-    let pool_app = app.clone();
-    tokio::task::spawn_blocking(move || {
-        pool_app.pool.install(|| {
-            let clock = Instant::now();
-            let results =
-                coco::parse_coco_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
-            let with_masks = task == CocoProtocol::Segmentation;
-            let gt = datasets::config::coco_gt(&root, with_masks)
-                .map_err(|e| JobError::Service(e.to_string()))?;
-            let mut evaluation =
-                coco::evaluation(&gt, &results, task.task()).map_err(|e| match e {
-                    evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
-                    other => JobError::Service(other.to_string()),
-                })?;
-            let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
-            let replicates = evaluation
-                .bootstrap(seed, bootstrap::REPLICATES)
-                .map_or_else(Vec::new, |b| b.replicates);
-            Ok(Outcome::Coco(Box::new(FinishedCoco {
-                report: evaluation.report,
-                replicates,
-                parameters: task.task().parameters(),
-                eval_ms: clock.elapsed().as_millis() as i64,
-                dataset_hash,
-            })))
-        })
+    on_pool(app, move |clock| {
+        let results =
+            coco::parse_coco_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
+        let with_masks = task == CocoProtocol::Segmentation;
+        let gt = datasets::config::coco_gt(&root, with_masks)
+            .map_err(|e| JobError::Service(e.to_string()))?;
+        let mut evaluation = coco::evaluation(&gt, &results, task.task()).map_err(|e| match e {
+            evaluator::Error::CocoResults(p) => JobError::User(p.to_string()),
+            other => JobError::Service(other.to_string()),
+        })?;
+        let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
+        let replicates = evaluation
+            .bootstrap(seed, bootstrap::REPLICATES)
+            .map_or_else(Vec::new, |b| b.replicates);
+        Ok(Outcome::Coco(Box::new(FinishedCoco {
+            report: evaluation.report,
+            replicates,
+            parameters: task.task().parameters(),
+            eval_ms: elapsed_ms(clock),
+            dataset_hash,
+        })))
     })
     .await
-    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
 }
 
 /// Scores a bop24 file on the evaluation threads, on the dataset loaded with its
@@ -226,30 +235,19 @@ async fn evaluate_bop24(
         state.cancel.clone(),
         state.taken_over.clone(),
     );
-    let pool_app = app.clone();
-    tokio::task::spawn_blocking(move || {
-        pool_app.pool.install(|| {
-            let clock = Instant::now();
-            let results =
-                results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
-            started.fetch_add(1, Ordering::Relaxed);
-            let cap = detection::default_max_estimates_per_image(&dataset.name);
-            let report = detection::evaluate(&dataset, &results, cap, counter.as_ref(), &cancel)
-                .map_err(|e| match e {
-                    evaluator::Error::Cancelled if taken.load(Ordering::Relaxed) => {
-                        JobError::TakenOver
-                    }
-                    evaluator::Error::Cancelled => JobError::Stopped,
-                    other => JobError::Service(other.to_string()),
-                })?;
-            Ok(Outcome::Bop24 {
-                report: Box::new(report),
-                eval_ms: clock.elapsed().as_millis() as i64,
-            })
+    on_pool(app, move |clock| {
+        let results =
+            results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
+        started.fetch_add(1, Ordering::Relaxed);
+        let cap = detection::default_max_estimates_per_image(&dataset.name);
+        let report = detection::evaluate(&dataset, &results, cap, counter.as_ref(), &cancel)
+            .map_err(|e| ended(e, &taken))?;
+        Ok(Outcome::Bop24 {
+            report: Box::new(report),
+            eval_ms: elapsed_ms(clock),
         })
     })
     .await
-    .unwrap_or_else(|e| Err(JobError::Service(format!("the evaluation crashed: {e}"))))
 }
 
 /// The per-estimate errors of one protocol, compressed for the store.
