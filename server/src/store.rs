@@ -20,6 +20,7 @@ use sqlx::{Any, AnyPool, Transaction};
 pub mod accounts;
 pub mod audit;
 pub mod backup;
+pub mod board_rows;
 pub mod board_version;
 pub mod bop24_scores;
 pub mod coco_scores;

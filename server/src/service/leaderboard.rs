@@ -22,6 +22,7 @@ use crate::domain::{
 };
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
+use crate::store::board_rows::EntryHead;
 use crate::store::bop24_scores::Bop24BoardEntry;
 use crate::store::coco_scores::CocoBoardEntry;
 use crate::store::datasets::DatasetRow;
@@ -273,7 +274,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
                 .iter()
                 .filter_map(|r| {
                     let id = r.scores.get(&d.name)?.submission_id;
-                    let e = coco.iter().find(|e| e.submission_id == id)?;
+                    let e = coco.iter().find(|e| e.head.submission_id == id)?;
                     Some((r.method.clone(), e.report.clone()))
                 })
                 .collect(),
@@ -283,7 +284,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
                 .iter()
                 .filter_map(|r| {
                     let id = r.scores.get(&d.name)?.submission_id;
-                    let e = bop24.iter().find(|e| e.submission_id == id)?;
+                    let e = bop24.iter().find(|e| e.head.submission_id == id)?;
                     Some((r.method.clone(), e.report.clone()))
                 })
                 .collect(),
@@ -410,100 +411,81 @@ where
 }
 
 fn pose_entry(e: BoardEntry) -> Entry {
-    Entry {
-        cell: Cell {
-            submission_id: e.submission_id,
-            score: e.score.score,
-            recall: e.score.recall,
-            ar_vsd: e.score.ar_vsd,
-            ar_mssd: e.score.ar_mssd,
-            ar_mspd: e.score.ar_mspd,
-            time: e.score.time_avg,
-            pinned: e.pinned,
-            record: Some(e.score.record.clone()),
-            ci95: e.score.ci95,
-            score_id: Some(e.score.id),
-            stats: BTreeMap::new(),
-            red_flags: Vec::new(),
-        },
-        method_id: e.method_id,
-        method: e.method,
-        owner: e.owner,
-        training_data: e.training_data,
-        modality: e.modality,
-        hardware: e.hardware,
-        dataset_id: e.dataset_id,
-        dataset: e.dataset,
-        objects: e.object_scores,
-    }
+    let cell = Cell {
+        recall: e.score.recall,
+        ar_vsd: e.score.ar_vsd,
+        ar_mssd: e.score.ar_mssd,
+        ar_mspd: e.score.ar_mspd,
+        record: Some(e.score.record.clone()),
+        ci95: e.score.ci95,
+        score_id: Some(e.score.id),
+        ..headline(&e.head, e.score.score, e.score.time_avg)
+    };
+    entry(e.head, cell, e.object_scores)
 }
 
 fn coco_entry(e: &CocoBoardEntry) -> Entry {
-    Entry {
-        cell: Cell {
-            submission_id: e.submission_id,
-            score: e.report.ap,
-            recall: None,
-            ar_vsd: None,
-            ar_mssd: None,
-            ar_mspd: None,
-            time: e.time_avg,
-            pinned: e.pinned,
-            record: Some(e.record.clone()),
-            ci95: e.ci95,
-            score_id: Some(e.score_id),
-            stats: e.report.stats().into_iter().collect(),
-            red_flags: Vec::new(),
-        },
-        method_id: e.method_id,
-        method: e.method.clone(),
-        owner: e.owner.clone(),
-        training_data: e.training_data,
-        modality: e.modality,
-        hardware: e.hardware.clone(),
-        dataset_id: e.dataset_id,
-        dataset: e.dataset.clone(),
-        objects: BTreeMap::new(),
-    }
+    let cell = Cell {
+        record: Some(e.record.clone()),
+        ci95: e.ci95,
+        score_id: Some(e.score_id),
+        stats: e.report.stats().into_iter().collect(),
+        ..headline(&e.head, e.report.ap, e.time_avg)
+    };
+    entry(e.head.clone(), cell, BTreeMap::new())
 }
 
 fn bop24_entry(e: &Bop24BoardEntry) -> Entry {
     let r = &e.report;
+    let cell = Cell {
+        stats: BOP24_PARTS
+            .into_iter()
+            .zip([
+                r.bop24_map_mssd,
+                r.bop24_map_mspd,
+                r.bop24_map_mssd_mm,
+                r.bop25_map,
+                r.bop25_map_mm,
+            ])
+            .filter(|(_, v)| v.is_finite())
+            .collect(),
+        ..headline(&e.head, r.bop24_map, e.time_avg)
+    };
+    entry(e.head.clone(), cell, bop24_objects(r))
+}
+
+/// A board's cell with only its headline: what every task has.
+fn headline(head: &EntryHead, score: f64, time: Option<f64>) -> Cell {
+    Cell {
+        submission_id: head.submission_id,
+        score,
+        recall: None,
+        ar_vsd: None,
+        ar_mssd: None,
+        ar_mspd: None,
+        time,
+        pinned: head.pinned,
+        record: None,
+        ci95: None,
+        score_id: None,
+        stats: BTreeMap::new(),
+        red_flags: Vec::new(),
+    }
+}
+
+/// A board's entry: who the method is, from the row every board reads alike, and its cell.
+fn entry(head: EntryHead, cell: Cell, objects: BTreeMap<i64, f64>) -> Entry {
     Entry {
-        cell: Cell {
-            submission_id: e.submission_id,
-            score: r.bop24_map,
-            recall: None,
-            ar_vsd: None,
-            ar_mssd: None,
-            ar_mspd: None,
-            time: e.time_avg,
-            pinned: e.pinned,
-            record: None,
-            ci95: None,
-            score_id: None,
-            stats: BOP24_PARTS
-                .into_iter()
-                .zip([
-                    r.bop24_map_mssd,
-                    r.bop24_map_mspd,
-                    r.bop24_map_mssd_mm,
-                    r.bop25_map,
-                    r.bop25_map_mm,
-                ])
-                .filter(|(_, v)| v.is_finite())
-                .collect(),
-            red_flags: Vec::new(),
-        },
-        method_id: e.method_id,
-        method: e.method.clone(),
-        owner: e.owner.clone(),
-        training_data: e.training_data,
-        modality: e.modality,
-        hardware: e.hardware.clone(),
-        dataset_id: e.dataset_id,
-        dataset: e.dataset.clone(),
-        objects: bop24_objects(r),
+        cell,
+        method_id: head.method_id,
+        method: head.method,
+        owner: head.owner,
+        training_data: head.training_data,
+        modality: head.modality,
+        hardware: head.hardware,
+        dataset_id: head.dataset_id,
+        dataset: head.dataset,
+        objects,
     }
 }
 

@@ -18,6 +18,7 @@ use crate::domain::{BoardProtocol, MethodId, SubmissionId, Task};
 use crate::error::AppResult;
 use crate::service::{methods, submissions, visibility};
 use crate::store::accounts::User;
+use crate::store::board_rows::Whose;
 use crate::store::scores::{ScoreRecord, ScoreRow};
 use crate::store::submissions::{QueuePlace, Status, SubmissionRow};
 
@@ -153,16 +154,16 @@ impl Owned {
 pub async fn of_owner(app: &App, user: &User) -> AppResult<Vec<Owned>> {
     let rows = app.store.submissions_of_owner(user.id).await?;
     let scores = app.store.scores_of_owner(user.id).await?;
-    let mut aps = app.store.coco_scores_of_owner(user.id).await?;
-    aps.extend(app.store.bop24_scores_of_owner(user.id).await?);
+    let mut aps = app.store.coco_aps(Whose::Owner(user.id)).await?;
+    aps.extend(app.store.bop24_maps(Whose::Owner(user.id)).await?);
     Ok(scored(rows, scores, aps))
 }
 
 /// `rows`, submissions of method `id` (those the reader may see), with their headline scores.
 pub async fn of_method(app: &App, id: MethodId, rows: Vec<SubmissionRow>) -> AppResult<Vec<Owned>> {
     let scores = app.store.scores_of_method(id).await?;
-    let mut aps = app.store.coco_scores_of_method(id).await?;
-    aps.extend(app.store.bop24_scores_of_method(id).await?);
+    let mut aps = app.store.coco_aps(Whose::Method(id)).await?;
+    aps.extend(app.store.bop24_maps(Whose::Method(id)).await?);
     Ok(scored(rows, scores, aps))
 }
 

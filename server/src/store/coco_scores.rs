@@ -9,28 +9,17 @@ use evaluator::report::as_defined;
 use sqlx::Row;
 use sqlx::any::AnyRow;
 
-use super::methods::optional_column;
-use super::scores::{RecordParameters, ScoreRecord, stored_parameters};
-use super::{Store, StoreError, StoreResult, parse_column};
-use crate::domain::{
-    BoardProtocol, CocoProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
+use super::board_rows::{
+    EntryHead, HEAD_COLUMNS, HEAD_JOINS, ScoreTable, Whose, head, report_json,
 };
+use super::scores::{RecordParameters, ScoreRecord, stored_parameters};
+use super::{Store, StoreResult, parse_column};
+use crate::domain::{BoardProtocol, CocoProtocol, DatasetId, MethodId, SubmissionId};
 
 /// A method's entry on a dataset's board of a 2D task.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CocoBoardEntry {
-    pub method_id: MethodId,
-    pub method: String,
-    /// The name of the account the method belongs to.
-    pub owner: String,
-    pub training_data: Option<TrainingData>,
-    pub modality: Option<Modality>,
-    pub hardware: String,
-    pub dataset_id: DatasetId,
-    pub dataset: String,
-    pub submission_id: SubmissionId,
-    /// Its owner pinned it (otherwise it is the best).
-    pub pinned: bool,
+    pub head: EntryHead,
     /// Seconds per image; `None` when the file gave no time.
     pub time_avg: Option<f64>,
     pub report: CocoReport,
@@ -79,14 +68,6 @@ const ENTRY_SQL: &str = "COALESCE((SELECT p.submission_id FROM entry_pins p \
      AND s2.status = 'done' AND s2.public = 1 AND s2.hidden = 0 AND c2.task = $1 \
      ORDER BY c2.ap DESC, s2.id LIMIT 1))";
 
-fn report(row: &AnyRow) -> StoreResult<CocoReport> {
-    let json: String = row.try_get("report_json")?;
-    serde_json::from_str(&json).map_err(|_| StoreError::Corrupt {
-        column: "report_json",
-        value: json,
-    })
-}
-
 impl Store {
     /// The report of a submission of a 2D task, once scored.
     pub async fn coco_report(
@@ -98,7 +79,7 @@ impl Store {
             .fetch_optional(&self.pool)
             .await?
             .as_ref()
-            .map(report)
+            .map(report_json)
             .transpose()
     }
 
@@ -120,40 +101,13 @@ impl Store {
             .transpose()
     }
 
-    /// The AP of every scored 2D submission of `owner`, by submission.
-    pub async fn coco_scores_of_owner(
-        &self,
-        owner: UserId,
-    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
-        self.coco_scores_where("s.owner_id", owner.get()).await
-    }
-
-    /// The AP of every scored 2D submission of method `id`, private ones included.
-    pub async fn coco_scores_of_method(
-        &self,
-        id: MethodId,
-    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
-        self.coco_scores_where("s.method_id", id.get()).await
-    }
-
-    /// The AP of the scored 2D submissions whose `column` is `value`, by submission.
-    async fn coco_scores_where(
-        &self,
-        column: &'static str,
-        value: i64,
-    ) -> StoreResult<Vec<(SubmissionId, f64)>> {
-        let sql = format!(
-            "SELECT c.submission_id, c.ap FROM coco_scores c \
-             JOIN submissions s ON s.id = c.submission_id WHERE {column} = $1 \
-             ORDER BY c.submission_id"
-        );
-        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
-            .bind(value)
-            .fetch_all(&self.pool)
-            .await?;
-        rows.iter()
-            .map(|r| Ok((r.try_get("submission_id")?, r.try_get("ap")?)))
-            .collect()
+    /// The AP of every scored 2D submission of `whose`, private ones included, by submission.
+    pub async fn coco_aps(&self, whose: Whose) -> StoreResult<Vec<(SubmissionId, f64)>> {
+        let table = ScoreTable {
+            table: "coco_scores",
+            column: "ap",
+        };
+        self.headline_scores(table, whose).await
     }
 
     /// The entry, for `task`, of a method on a dataset: the submission and whether it is pinned.
@@ -163,20 +117,8 @@ impl Store {
         method_id: MethodId,
         dataset_id: DatasetId,
     ) -> StoreResult<Option<(SubmissionId, bool)>> {
-        let sql = format!(
-            "SELECT {ENTRY_SQL} AS entry, (SELECT p.submission_id FROM entry_pins p \
-             WHERE p.method_id = $2 AND p.dataset_id = $3) AS pin \
-             FROM (SELECT CAST($2 AS BIGINT) AS method_id, CAST($3 AS BIGINT) AS dataset_id) s"
-        );
-        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
-            .bind(task.as_str())
-            .bind(method_id)
-            .bind(dataset_id)
-            .fetch_one(&self.pool)
-            .await?;
-        let entry: Option<SubmissionId> = row.try_get("entry")?;
-        let pin: Option<SubmissionId> = row.try_get("pin")?;
-        Ok(entry.map(|id| (id, pin == Some(id))))
+        self.entry_by(ENTRY_SQL, &[task.as_str()], method_id, dataset_id)
+            .await
     }
 
     /// The board of a 2D task, in one query: every method's entry per dataset (optionally one
@@ -188,14 +130,8 @@ impl Store {
     ) -> StoreResult<Vec<CocoBoardEntry>> {
         let sql = format!(
             "SELECT c.id AS score_id, c.submission_id, c.time_avg, c.report_json, {RECORD_COLUMNS}, \
-             s.method_id, m.name AS method, \
-             COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
-             s.dataset_id, d.name AS dataset, \
-             CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
-             THEN 1 ELSE 0 END AS BIGINT) AS pinned \
-             FROM coco_scores c JOIN submissions s ON s.id = c.submission_id \
-             JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
-             LEFT JOIN users u ON u.id = m.owner_id \
+             {HEAD_COLUMNS} \
+             FROM coco_scores c JOIN submissions s ON s.id = c.submission_id {HEAD_JOINS} \
              WHERE c.task = $1 AND s.status = 'done' AND s.public = 1 AND s.hidden = 0 \
              AND d.retired = 0 AND ($2 < 0 OR s.dataset_id = $2) AND s.id = {ENTRY_SQL} \
              ORDER BY c.ap DESC, m.id, c.id"
@@ -208,18 +144,9 @@ impl Store {
         rows.iter()
             .map(|r| {
                 Ok(CocoBoardEntry {
-                    method_id: r.try_get("method_id")?,
-                    method: r.try_get("method")?,
-                    owner: r.try_get("owner")?,
-                    training_data: optional_column(r, "training_data")?,
-                    modality: optional_column(r, "modality")?,
-                    hardware: r.try_get("hardware")?,
-                    dataset_id: r.try_get("dataset_id")?,
-                    dataset: r.try_get("dataset")?,
-                    submission_id: r.try_get("submission_id")?,
-                    pinned: r.try_get::<i64, _>("pinned")? != 0,
+                    head: head(r)?,
                     time_avg: r.try_get("time_avg")?,
-                    report: report(r)?,
+                    report: report_json(r)?,
                     score_id: r.try_get("score_id")?,
                     ci95: ci95(r)?,
                     record: record(r)?,

@@ -12,12 +12,10 @@ use serde::Serialize;
 use sqlx::Row;
 use sqlx::any::AnyRow;
 
-use super::methods::optional_column;
+use super::board_rows::{EntryHead, HEAD_COLUMNS, HEAD_JOINS, head};
 use super::queue::replicates_from;
 use super::{Store, StoreError, StoreResult, fetch_in, parse_column};
-use crate::domain::{
-    BoardProtocol, DatasetId, MethodId, Modality, SubmissionId, TrainingData, UserId,
-};
+use crate::domain::{BoardProtocol, DatasetId, MethodId, SubmissionId, UserId};
 
 /// One protocol's headline numbers of a submission.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -99,22 +97,9 @@ const SCORE_COLUMNS: &str = "sc.id AS score_id, sc.submission_id, sc.protocol, s
      s.file_sha256, sc.ci_low, sc.ci_high";
 
 /// A leaderboard entry: a method's entry on a dataset (see [`entry_sql`]).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BoardEntry {
-    pub method_id: MethodId,
-    pub method: String,
-    /// The name of the account the method belongs to.
-    pub owner: String,
-    pub training_data: Option<TrainingData>,
-    pub modality: Option<Modality>,
-    /// The method's hardware.
-    pub hardware: String,
-    pub dataset_id: DatasetId,
-    pub dataset: String,
-    pub submission_id: SubmissionId,
-    pub submitted_at: i64,
-    /// Its owner pinned it (otherwise it is the best).
-    pub pinned: bool,
+    pub head: EntryHead,
     pub score: ScoreRow,
     pub object_scores: BTreeMap<i64, f64>,
 }
@@ -252,12 +237,9 @@ impl Store {
         dataset_id: Option<DatasetId>,
     ) -> StoreResult<Vec<BoardEntry>> {
         let sql = format!(
-            "SELECT {SCORE_COLUMNS}, s.method_id, m.name AS method, COALESCE(u.name, '') AS owner, m.training_data, \
-             m.modality, m.hardware, s.dataset_id, d.name AS dataset, s.finished_at, \
-             {PINNED_SQL} AS pinned, os.obj_id, os.value AS obj_value \
-             FROM scores sc JOIN submissions s ON s.id = sc.submission_id \
-             JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id \
-             LEFT JOIN users u ON u.id = m.owner_id \
+            "SELECT {SCORE_COLUMNS}, {HEAD_COLUMNS}, \
+             os.obj_id, os.value AS obj_value \
+             FROM scores sc JOIN submissions s ON s.id = sc.submission_id {HEAD_JOINS} \
              LEFT JOIN object_scores os ON os.score_id = sc.id \
              WHERE sc.protocol = $1 AND s.status = 'done' AND s.public = 1 AND s.hidden = 0 AND d.retired = 0 \
              AND ($2 < 0 OR s.dataset_id = $2) AND s.id = {} \
@@ -274,19 +256,7 @@ impl Store {
             let score_id: i64 = r.try_get("score_id")?;
             if entries.last().is_none_or(|e| e.score.id != score_id) {
                 entries.push(BoardEntry {
-                    method_id: r.try_get("method_id")?,
-                    method: r.try_get("method")?,
-                    owner: r.try_get("owner")?,
-                    training_data: optional_column(r, "training_data")?,
-                    modality: optional_column(r, "modality")?,
-                    hardware: r.try_get("hardware")?,
-                    dataset_id: r.try_get("dataset_id")?,
-                    dataset: r.try_get("dataset")?,
-                    submission_id: r.try_get("submission_id")?,
-                    submitted_at: r
-                        .try_get::<Option<i64>, _>("finished_at")?
-                        .unwrap_or_default(),
-                    pinned: r.try_get::<i64, _>("pinned")? != 0,
+                    head: head(r)?,
                     score: score(r)?,
                     object_scores: BTreeMap::new(),
                 });

@@ -15,6 +15,7 @@ use server::domain::{
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
 use server::store::audit::AdminAction;
+use server::store::board_rows::Whose;
 use server::store::datasets::DatasetRow;
 use server::store::methods::MethodMeta;
 use server::store::pose_errors::NewErrors;
@@ -347,7 +348,7 @@ fn submissions_queue_and_scores(kind: Db) {
         let board = store.leaderboard(ProtocolName::Bop19, None).await.unwrap();
         assert_eq!(board.len(), 1);
         assert_eq!(board[0].score.score, reports[0].headline());
-        assert_eq!(board[0].modality, Some(Modality::RgbD));
+        assert_eq!(board[0].head.modality, Some(Modality::RgbD));
         let objects: Vec<(i64, f64)> = reports[0]
             .obj_average_recalls
             .iter()
@@ -495,7 +496,7 @@ fn bop24_scores(kind: Db) {
         assert_eq!(stored.errors, nothing.errors);
 
         let board = store.bop24_leaderboard(None).await.unwrap();
-        let order: Vec<SubmissionId> = board.iter().map(|e| e.submission_id).collect();
+        let order: Vec<SubmissionId> = board.iter().map(|e| e.head.submission_id).collect();
         assert_eq!(
             order, ids,
             "exact, noisy, then the one that counted nothing"
@@ -507,10 +508,13 @@ fn bop24_scores(kind: Db) {
             Some(exact.bop24_average_time_per_image).filter(|t| *t >= 0.0)
         );
         assert_eq!(
-            store.bop24_entry(board[1].method_id, ds.id).await.unwrap(),
+            store
+                .bop24_entry(board[1].head.method_id, ds.id)
+                .await
+                .unwrap(),
             Some((ids[1], false))
         );
-        let mut mine = store.bop24_scores_of_owner(owner).await.unwrap();
+        let mut mine = store.bop24_maps(Whose::Owner(owner)).await.unwrap();
         mine.sort_by_key(|m| m.0);
         assert_eq!(
             mine,
