@@ -9,23 +9,19 @@
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::Duration;
 
 use crate::bop24_cli::{KEYS, datasets, result_file};
 use crate::common::{
     self, BIN, Db, TestDb, both_databases, eval_report, fixtures, get_as, get_json, start, upload,
-    wait_done,
+    upload_scored,
 };
 use serde_json::Value;
 
 /// Uploads `file` for bop24 and waits for its scores: the report the service gives for it.
 fn scored(server: &common::Server, method: &str, file: &Path) -> Value {
-    let r = upload(server, method, "synthA", file, Some("bop24"));
-    assert_eq!(r.status().as_u16(), 202, "{method}: {}", r.text().unwrap());
-    let body: Value = r.json().expect("JSON");
+    let body = upload_scored(server, method, "synthA", file, Some("bop24"));
     assert_eq!(body["submission"]["task"], "bop24", "{body}");
     let id = body["id"].as_i64().expect("id");
-    wait_done(&server.base, id, Duration::from_secs(120));
     let report = get_json(&format!("{}/api/v1/submissions/{id}/report", server.base));
     let mut report = report["bop24"].clone();
     report["submission_id"] = id.into();

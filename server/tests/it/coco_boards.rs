@@ -8,7 +8,6 @@
 //! ones; and a 6D board's JSON leaves out the breakdowns its protocol does not have.
 
 use std::path::Path;
-use std::time::Duration;
 
 use evaluator::bootstrap::{self, REPLICATES};
 use evaluator::coco::{self, BboxType, CocoGt, CocoTask, STAT_NAMES};
@@ -17,23 +16,16 @@ use serde_json::Value;
 use sha2::{Digest, Sha256};
 
 use crate::common::{
-    Db, TestDb, both_databases, cli_report, client, column, get_json, poseboard, start, upload,
-    wait_done,
+    Db, Server, SynthDemo, TestDb, both_databases, cli_report, client, column, get_json, start,
+    upload_scored,
 };
 use crate::exports::parse_csv;
 
 /// Uploads `file` publicly and waits until it is scored; its id.
-fn scored(
-    server: &crate::common::Server,
-    method: &str,
-    file: &Path,
-    protocol: Option<&str>,
-) -> i64 {
-    let r = upload(server, method, "synthdemo", file, protocol);
-    assert_eq!(r.status().as_u16(), 202, "{method}: {}", r.text().unwrap());
-    let id = r.json::<Value>().expect("JSON")["id"].as_i64().expect("id");
-    wait_done(&server.base, id, Duration::from_secs(120));
-    id
+fn scored(server: &Server, method: &str, file: &Path, protocol: Option<&str>) -> i64 {
+    upload_scored(server, method, "synthdemo", file, protocol)["id"]
+        .as_i64()
+        .expect("id")
 }
 
 /// The interval the evaluator draws for `file` on `dataset`, as the worker must.
@@ -51,32 +43,15 @@ fn expected_interval(dataset: &Path, file: &Path, task: CocoTask) -> [f64; 2] {
 }
 
 fn coco_boards(kind: Db) {
-    let dir = tempfile::tempdir().expect("tmp");
-    let datasets = dir.path().join("datasets");
-    let dataset = datasets.join("synthdemo");
-    let results = dir.path().join("results");
-    let path = |p: &Path| p.to_str().expect("path").to_string();
-    let (dataset_arg, results_arg) = (path(&dataset), path(&results));
-    for args in [
-        &["dataset", "synth", &dataset_arg][..],
-        &["dataset", "demo-results", &dataset_arg, &results_arg],
-        &[
-            "dataset",
-            "demo-results",
-            "--coco",
-            &dataset_arg,
-            &results_arg,
-        ],
-    ] {
-        assert!(poseboard(args).status.success(), "{args:?}");
-    }
+    let set = SynthDemo::new();
+    let (dataset, results) = (&set.dataset, &set.results);
     let det_file = results.join("demo-detector_synthdemo-test.json");
     let seg_file = results.join("demo-segmenter_synthdemo-test.json");
     let pose_file = results.join("demo-precise_synthdemo-test.csv");
 
     let db = TestDb::new(kind, "cocoboards");
-    let data = dir.path().join("data");
-    let server = start(&data, &datasets, &db, &["--no-demo"]);
+    let data = set.data();
+    let server = start(&data, &set.datasets, &db, &["--no-demo"]);
     let base = &server.base;
     let det = scored(&server, "boxes", &det_file, Some("bop22-det"));
     let seg = scored(&server, "masks", &seg_file, Some("bop22-seg"));
@@ -97,7 +72,7 @@ fn coco_boards(kind: Db) {
         ),
         ("bop22-seg", seg, &seg_file, CocoTask::Segmentation),
     ] {
-        let cli = cli_report(&dataset, file, protocol);
+        let cli = cli_report(dataset, file, protocol);
         let board = get_json(&format!("{base}/api/v1/leaderboards/{protocol}"));
         let row = &board["rows"][0];
         let cell = &row["scores"]["synthdemo"];
@@ -106,7 +81,7 @@ fn coco_boards(kind: Db) {
         // The AP is the evaluator's to the bit, and its interval is the evaluator's bootstrap.
         assert_eq!(cell["score"], cli["AP"], "{protocol}");
         let ci: Vec<f64> = serde_json::from_value(cell["ci95"].clone()).expect("ci95");
-        assert_eq!(ci, expected_interval(&dataset, file, task), "{protocol}");
+        assert_eq!(ci, expected_interval(dataset, file, task), "{protocol}");
         let ap = cli["AP"].as_f64().expect("AP");
         assert!(ci[0] <= ap && ap <= ci[1] && ci[0] < ci[1], "{ci:?} {ap}");
         // One dataset shown: the row's interval is the score's.

@@ -12,10 +12,9 @@ use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::Duration;
 
 use crate::common::{
-    BIN, Db, TestDb, both_databases, cli_report, get_json, start, upload, wait_done,
+    BIN, Db, TestDb, both_databases, cli_report, get_json, start, upload, upload_scored,
 };
 use serde_json::Value;
 
@@ -47,11 +46,8 @@ fn poseboard(args: &[&str], paths: &[&Path]) {
 
 /// Uploads `file` and waits for its scores: the report the service gives for it.
 fn scored(server: &common::Server, method: &str, file: &Path, protocol: Option<&str>) -> Value {
-    let r = upload(server, method, "synthdemo", file, protocol);
-    assert_eq!(r.status().as_u16(), 202, "{method}: {}", r.text().unwrap());
-    let body: Value = r.json().expect("JSON");
+    let body = upload_scored(server, method, "synthdemo", file, protocol);
     let id = body["id"].as_i64().expect("id");
-    wait_done(&server.base, id, Duration::from_secs(120));
     let report = get_json(&format!("{}/api/v1/submissions/{id}/report", server.base));
     let task = body["submission"]["task"].as_str().expect("a 2D task");
     let mut report = report[task].clone();

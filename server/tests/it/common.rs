@@ -418,6 +418,73 @@ pub fn wait_done(base: &str, id: i64, limit: Duration) -> Value {
     }
 }
 
+/// Uploads `file` publicly to `dataset` as `method` (under `protocol`, else as its kind's
+/// default) and waits until it is scored: the upload's answer (`id`, `submission`).
+pub fn upload_scored(
+    server: &Server,
+    method: &str,
+    dataset: &str,
+    file: &Path,
+    protocol: Option<&str>,
+) -> Value {
+    let r = upload(server, method, dataset, file, protocol);
+    assert_eq!(r.status().as_u16(), 202, "{method}: {}", r.text().unwrap());
+    let body: Value = r.json().expect("JSON");
+    let id = body["id"].as_i64().expect("id");
+    wait_done(&server.base, id, Duration::from_secs(120));
+    body
+}
+
+/// A synthetic dataset `synthdemo` with the demo's 6D and 2D result files, made by
+/// `poseboard dataset synth` and `dataset demo-results` in a temporary folder.
+pub struct SynthDemo {
+    pub dir: tempfile::TempDir,
+    /// The folder of datasets the server serves (holding `synthdemo`).
+    pub datasets: PathBuf,
+    pub dataset: PathBuf,
+    pub results: PathBuf,
+}
+
+impl SynthDemo {
+    pub fn new() -> SynthDemo {
+        let dir = tempfile::tempdir().expect("tmp");
+        let datasets = dir.path().join("datasets");
+        let dataset = datasets.join("synthdemo");
+        let results = dir.path().join("results");
+        let path = |p: &Path| p.to_str().expect("path").to_string();
+        let (dataset_arg, results_arg) = (path(&dataset), path(&results));
+        for args in [
+            &["dataset", "synth", &dataset_arg][..],
+            &["dataset", "demo-results", &dataset_arg, &results_arg],
+            &[
+                "dataset",
+                "demo-results",
+                "--coco",
+                &dataset_arg,
+                &results_arg,
+            ],
+        ] {
+            assert!(poseboard(args).status.success(), "{args:?}");
+        }
+        SynthDemo {
+            dir,
+            datasets,
+            dataset,
+            results,
+        }
+    }
+
+    /// The demo's result file `name`.
+    pub fn file(&self, name: &str) -> PathBuf {
+        self.results.join(name)
+    }
+
+    /// The service's data folder for this set.
+    pub fn data(&self) -> PathBuf {
+        self.dir.path().join("data")
+    }
+}
+
 /// What `poseboard eval` reports for a file.
 pub fn cli_report(dataset: &Path, results: &Path, protocol: &str) -> Value {
     eval_report(

@@ -7,23 +7,20 @@
 //! route answers a 404 page that says why and where to go instead.
 
 use std::path::Path;
-use std::time::Duration;
 
 use evaluator::coco::{self, BboxType, CocoGt, CocoTask};
 use evaluator::dataset::DatasetOptions;
 use serde_json::Value;
 
 use crate::common::{
-    Db, Server, TestDb, both_databases, client, get_json, poseboard, start, upload, wait_done,
+    Db, Server, SynthDemo, TestDb, both_databases, client, get_json, start, upload_scored,
 };
 
 /// Uploads `file` publicly as `method` and waits until it is scored; its id.
 fn scored(server: &Server, method: &str, file: &Path, protocol: Option<&str>) -> i64 {
-    let r = upload(server, method, "synthdemo", file, protocol);
-    assert_eq!(r.status().as_u16(), 202, "{method}: {}", r.text().unwrap());
-    let id = r.json::<Value>().expect("JSON")["id"].as_i64().expect("id");
-    wait_done(&server.base, id, Duration::from_secs(120));
-    id
+    upload_scored(server, method, "synthdemo", file, protocol)["id"]
+        .as_i64()
+        .expect("id")
 }
 
 /// The status and body of a GET without credentials.
@@ -62,28 +59,10 @@ fn counted(dataset: &Path, file: &Path) -> (usize, usize, usize) {
 }
 
 fn compare_tasks(kind: Db) {
-    let dir = tempfile::tempdir().expect("tmp");
-    let datasets = dir.path().join("datasets");
-    let dataset = datasets.join("synthdemo");
-    let results = dir.path().join("results");
-    let path = |p: &Path| p.to_str().expect("path").to_string();
-    let (dataset_arg, results_arg) = (path(&dataset), path(&results));
-    for args in [
-        &["dataset", "synth", &dataset_arg][..],
-        &["dataset", "demo-results", &dataset_arg, &results_arg],
-        &[
-            "dataset",
-            "demo-results",
-            "--coco",
-            &dataset_arg,
-            &results_arg,
-        ],
-    ] {
-        assert!(poseboard(args).status.success(), "{args:?}");
-    }
-    let file = |name: &str| results.join(name);
+    let set = SynthDemo::new();
+    let (dataset, file) = (&set.dataset, |name: &str| set.file(name));
     let db = TestDb::new(kind, "comparetasks");
-    let server = start(&dir.path().join("data"), &datasets, &db, &["--no-demo"]);
+    let server = start(&set.data(), &set.datasets, &db, &["--no-demo"]);
     let base = &server.base;
 
     let precise = scored(
@@ -127,7 +106,7 @@ fn compare_tasks(kind: Db) {
     let instances = view["instances"].as_u64().expect("instances") as usize;
     for (side, file) in [("a", &det_file), ("b", &seg_file)] {
         let total = &view[format!("{side}_total")];
-        let (n, matched, fp) = counted(&dataset, file);
+        let (n, matched, fp) = counted(dataset, file);
         assert_eq!(instances, n);
         assert_eq!(total["matched"], matched, "{side}: {total}");
         assert_eq!(total["false_positives"], fp, "{side}: {total}");
