@@ -2,6 +2,10 @@
 //! with the targets and result files of `tests/fixtures/bop24` (made by its `generate.py`; the
 //! toolkit's commit is in every expected file): every key of `scores_bop24.json` and every
 //! per-object AP at every threshold to 1e-9, and the file with two times for one image refused.
+//! The same on the reference scenes laid out as the BOP-Industrial datasets IPD and XYZ-IBD
+//! (`datasets/ipd`, `datasets/xyzibd`: the evaluated sensor's files beside another sensor's,
+//! MSPD normalised by the sensor's published width, XYZ-IBD's cap of 200 estimates per image),
+//! scored by the toolkit with its own parameters for those datasets.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -13,37 +17,58 @@ use evaluator::{Dataset, NoProgress, results};
 use serde_json::Value;
 
 const CASES: [&str; 5] = ["gtexact", "noisy", "extra", "ties", "capped"];
+/// The datasets the toolkit scored: synthA in the classic layout, then in two of BOP-Industrial.
+const DATASETS: [&str; 3] = ["synthA", "ipd", "xyzibd"];
 const TOLERANCE: f64 = 1e-9;
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures")
 }
 
-fn dataset() -> &'static Dataset {
-    static DS: OnceLock<Dataset> = OnceLock::new();
-    DS.get_or_init(|| {
-        let targets = fixtures().join("bop24/test_targets_bop24.json");
+fn dataset(name: &str) -> &'static Dataset {
+    static DS: [OnceLock<Dataset>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    let at = DATASETS
+        .iter()
+        .position(|d| *d == name)
+        .expect("a fixture dataset");
+    DS[at].get_or_init(|| {
+        let (root, targets) = if name == "synthA" {
+            (
+                fixtures().join("reference/dataset"),
+                fixtures().join("bop24/test_targets_bop24.json"),
+            )
+        } else {
+            let root = fixtures().join("bop24/datasets").join(name);
+            let targets = root.join("test_targets_bop24.json");
+            (root, targets)
+        };
         let options = DatasetOptions {
             targets_file: targets.to_string_lossy().into_owned(),
             ..DatasetOptions::default()
         };
-        Dataset::load_with(&fixtures().join("reference/dataset"), &options)
-            .expect("the reference dataset loads with the bop24 targets")
+        Dataset::load_with(&root, &options)
+            .unwrap_or_else(|e| panic!("{name} loads with the bop24 targets: {e}"))
     })
 }
 
-fn expected(case: &str) -> Value {
-    let path = fixtures().join(format!("bop24/expected/{case}.json"));
+fn expected(name: &str, case: &str) -> Value {
+    let path = match name {
+        "synthA" => fixtures().join(format!("bop24/expected/{case}.json")),
+        _ => fixtures().join(format!("bop24/expected/{name}/{case}.json")),
+    };
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-fn score(case: &str) -> DetectionReport {
-    let path = fixtures().join(format!("bop24/results/{case}_synthA-test.csv"));
-    let results = results::load_results(&path).expect("the result file parses");
+fn result_file(name: &str, case: &str) -> PathBuf {
+    fixtures().join(format!("bop24/results/{case}_{name}-test.csv"))
+}
+
+fn score(name: &str, case: &str) -> DetectionReport {
+    let results = results::load_results(&result_file(name, case)).expect("the result file parses");
     detection::evaluate(
-        dataset(),
+        dataset(name),
         &results,
-        detection::default_max_estimates_per_image("synthA"),
+        detection::default_max_estimates_per_image(name),
         &NoProgress,
         &AtomicBool::new(false),
     )
@@ -59,10 +84,14 @@ fn close(name: &str, ours: f64, theirs: f64) {
 
 #[test]
 fn every_key_equals_the_toolkits() {
-    assert_eq!(dataset().targets_form, TargetsForm::Images);
-    for case in CASES {
-        let report = score(case);
-        let want = expected(case);
+    for (name, case) in DATASETS
+        .into_iter()
+        .flat_map(|d| CASES.map(move |c| (d, c)))
+    {
+        assert_eq!(dataset(name).targets_form, TargetsForm::Images);
+        let label = format!("{name} {case}");
+        let report = score(name, case);
+        let want = expected(name, case);
         let json = serde_json::to_value(&report).unwrap();
         for key in [
             "bop24_mAP",
@@ -74,7 +103,7 @@ fn every_key_equals_the_toolkits() {
             "bop24_average_time_per_image",
         ] {
             close(
-                &format!("{case} {key}"),
+                &format!("{label} {key}"),
                 json[key].as_f64().unwrap(),
                 want[key].as_f64().unwrap(),
             );
@@ -89,10 +118,14 @@ fn every_key_equals_the_toolkits() {
                     .keys()
                     .filter(|o| want["num_targets_per_object"][o.as_str()].as_u64() > Some(0))
                     .collect();
-                assert_eq!(scores.objects.len(), with_instances.len(), "{case} {error}");
+                assert_eq!(
+                    scores.objects.len(),
+                    with_instances.len(),
+                    "{label} {error}"
+                );
                 for o in &scores.objects {
                     close(
-                        &format!("{case} {error} {sign} object {}", o.obj_id),
+                        &format!("{label} {error} {sign} object {}", o.obj_id),
                         o.ap_per_threshold[t],
                         theirs[&o.obj_id.to_string()].as_f64().unwrap(),
                     );
@@ -107,7 +140,7 @@ fn every_key_equals_the_toolkits() {
             // The curve's mean is the mAP: both come from the same interpolated precisions.
             let curve = &scores.precision_recall;
             close(
-                &format!("{case} {error} curve"),
+                &format!("{label} {error} curve"),
                 curve.iter().sum::<f64>() / curve.len() as f64,
                 scores.map,
             );
@@ -117,42 +150,61 @@ fn every_key_equals_the_toolkits() {
 
 #[test]
 fn what_the_cases_exercise_happens() {
-    let capped = score("capped");
-    assert!(capped.estimates_beyond_cap > 0, "{capped:?}");
-    let extra = score("extra");
-    let noisy = score("noisy");
-    assert!(extra.estimates_ignored > 0);
-    assert_eq!(extra.estimates_evaluated, noisy.estimates_evaluated);
-    assert_eq!(score("ties").bop24_average_time_per_image, -1.0);
-    // The instances under 10 % visible are not counted.
-    assert!(noisy.instances_counted < noisy.instances);
+    for name in DATASETS {
+        let capped = score(name, "capped");
+        assert!(capped.estimates_beyond_cap > 0, "{name}: {capped:?}");
+        let extra = score(name, "extra");
+        let noisy = score(name, "noisy");
+        assert!(extra.estimates_ignored > 0, "{name}");
+        assert_eq!(
+            extra.estimates_evaluated, noisy.estimates_evaluated,
+            "{name}"
+        );
+        assert_eq!(score(name, "ties").bop24_average_time_per_image, -1.0);
+        // The instances under 10 % visible are not counted.
+        assert!(noisy.instances_counted < noisy.instances, "{name}");
+        assert_eq!(score(name, "gtexact").bop24_map, 1.0, "{name}");
+    }
+    // The layouts read the evaluated sensor's files and its published width.
+    assert_eq!(dataset("ipd").image_width(1), 2064);
+    assert_eq!(dataset("xyzibd").image_width(2), 1440);
+    assert_eq!(detection::default_max_estimates_per_image("xyzibd"), 200);
 }
 
 #[test]
 fn two_times_for_one_image_are_refused() {
-    let want = expected("twotimes");
-    assert!(
-        want["refused"]
-            .as_str()
-            .unwrap()
-            .contains("scene 1 and image 0")
-    );
-    let path = fixtures().join("bop24/results/twotimes_synthA-test.csv");
-    let msg = results::load_results(&path).unwrap_err().to_string();
-    assert!(
-        msg.contains("time 0.25 for scene 1, image 0 differs from 0.5"),
-        "{msg}"
-    );
+    for name in DATASETS {
+        let want = expected(name, "twotimes");
+        assert!(
+            want["refused"]
+                .as_str()
+                .unwrap()
+                .contains("scene 1 and image 0"),
+            "{name}"
+        );
+        let msg = results::load_results(&result_file(name, "twotimes"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("for scene 1, image 0 differs from"),
+            "{name}: {msg}"
+        );
+    }
 }
 
 #[test]
 fn the_cap_keeps_the_best_scored_over_all_objects() {
     // With a cap of one estimate per image, only each image's best-scored estimate counts,
     // whatever its object.
-    let path = fixtures().join("bop24/results/extra_synthA-test.csv");
-    let results = results::load_results(&path).unwrap();
-    let one =
-        detection::evaluate(dataset(), &results, 1, &NoProgress, &AtomicBool::new(false)).unwrap();
+    let results = results::load_results(&result_file("synthA", "extra")).unwrap();
+    let one = detection::evaluate(
+        dataset("synthA"),
+        &results,
+        1,
+        &NoProgress,
+        &AtomicBool::new(false),
+    )
+    .unwrap();
     let images: std::collections::BTreeSet<(u32, u32)> = results
         .estimates
         .iter()
@@ -163,7 +215,14 @@ fn the_cap_keeps_the_best_scored_over_all_objects() {
         results.estimates.len() - images.len()
     );
     assert!(
-        detection::evaluate(dataset(), &results, 0, &NoProgress, &AtomicBool::new(false)).is_err()
+        detection::evaluate(
+            dataset("synthA"),
+            &results,
+            0,
+            &NoProgress,
+            &AtomicBool::new(false)
+        )
+        .is_err()
     );
     assert_eq!(DetectionError::MssdMm.thresholds()[9], 20.0);
 }
