@@ -225,3 +225,72 @@ fn segmentation_needs_masks_and_consistent_boxes() {
             .is_err()
     );
 }
+
+/// The fixture laid out as IPD: each scene's COCO files carry the evaluated sensor's suffix
+/// (`scene_gt_coco_photoneo.json`), and unsuffixed files beside them, with every box moved,
+/// must not be read.
+fn as_ipd() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("ipd");
+    let from = fixtures().join("dataset/tudl");
+    std::fs::create_dir_all(root.join("test")).unwrap();
+    for file in ["camera.json", "test_targets_bop19.json"] {
+        std::fs::copy(from.join(file), root.join(file)).unwrap();
+    }
+    for scene in std::fs::read_dir(from.join("test")).unwrap() {
+        let scene = scene.unwrap().path();
+        let to = root.join("test").join(scene.file_name().unwrap());
+        std::fs::create_dir(&to).unwrap();
+        for stem in ["scene_gt_coco", "scene_gt_coco_modal"] {
+            let plain = scene.join(format!("{stem}.json"));
+            std::fs::copy(&plain, to.join(format!("{stem}_photoneo.json"))).unwrap();
+            let mut moved = json(&plain);
+            for ann in moved["annotations"].as_array_mut().unwrap() {
+                ann["bbox"][0] = (ann["bbox"][0].as_f64().unwrap() + 40.0).into();
+            }
+            std::fs::write(to.join(format!("{stem}.json")), moved.to_string()).unwrap();
+        }
+    }
+    (dir, root)
+}
+
+#[test]
+fn industrial_layouts_read_the_evaluated_sensors_coco_files() {
+    let (_dir, root) = as_ipd();
+    for task in [
+        CocoTask::Detection(BboxType::Amodal),
+        CocoTask::Detection(BboxType::Modal),
+        CocoTask::Segmentation,
+    ] {
+        let masks = task == CocoTask::Segmentation;
+        let ipd = CocoGt::load(&root, &DatasetOptions::default(), task.bbox_type(), masks)
+            .expect("the IPD layout loads");
+        assert!(ipd.files.iter().all(|f| {
+            f.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .ends_with("_photoneo.json")
+        }));
+        let classic = gt(task.bbox_type(), masks);
+        assert_eq!(ipd.annotations, classic.annotations, "{task:?}");
+        assert_eq!(ipd.images, classic.images, "{task:?}");
+        for case in ["noisy", "tied", "many"] {
+            let results =
+                load_coco_results(&fixtures().join(format!("results/{case}_tudl-test.json")))
+                    .expect("results parse");
+            let ours = coco::evaluate(&ipd, &results, task).expect("evaluates");
+            let theirs = coco::evaluate(&classic, &results, task).expect("evaluates");
+            assert_eq!(ours.stats(), theirs.stats(), "{case} {task:?}");
+        }
+    }
+    // Without the evaluated sensor's file, the message names the file it looked for.
+    let scene = root.join("test/000001");
+    std::fs::remove_file(scene.join("scene_gt_coco_photoneo.json")).unwrap();
+    let msg = CocoGt::load(&root, &DatasetOptions::default(), BboxType::Amodal, false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("scene_gt_coco_photoneo.json: no such file"),
+        "{msg}"
+    );
+}

@@ -1,7 +1,9 @@
 //! The COCO ground truth BOP ships with a dataset: per test scene, `scene_gt_coco.json`
 //! (boxes around the full silhouette, "amodal") and `scene_gt_coco_modal.json` (boxes around
 //! the visible part), made by bop_toolkit's `calc_gt_coco.py` from the visible masks, with
-//! `ignore` set on instances less than 10 % visible.
+//! `ignore` set on instances less than 10 % visible. A dataset recorded with several sensors
+//! (IPD, XYZ-IBD, ITODD-MV, HOT3D) has them per sensor, and the evaluated sensor's are read
+//! (`scene_gt_coco_photoneo.json`), the one its 6D ground truth is read from.
 //!
 //! Only the images of the targets file count, and the scenes are merged into one evaluation
 //! as `eval_bop22_coco.py` merges them: scenes in the order they first appear in the targets
@@ -19,6 +21,7 @@ use serde_json::Value;
 use super::rle::Rle;
 use crate::dataset::{DatasetOptions, find_split, read_json, scene_dir};
 use crate::error::{Error, Result};
+use crate::sensors::eval_sensor;
 
 /// Which boxes the ground truth has: the file a scene's annotations are read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -38,10 +41,17 @@ impl BboxType {
         }
     }
 
-    pub fn file_name(self) -> &'static str {
-        match self {
-            BboxType::Amodal => "scene_gt_coco.json",
-            BboxType::Modal => "scene_gt_coco_modal.json",
+    /// The scene's file of these boxes; in a dataset recorded with several sensors, the
+    /// evaluated sensor's (`scene_gt_coco_photoneo.json`, `scene_gt_coco_modal_photoneo.json`,
+    /// as `dataset_params.py` names them and `eval_bop22_coco.py` reads them).
+    pub fn file_name(self, sensor: Option<&str>) -> String {
+        let stem = match self {
+            BboxType::Amodal => "scene_gt_coco",
+            BboxType::Modal => "scene_gt_coco_modal",
+        };
+        match sensor {
+            Some(suffix) => format!("{stem}_{suffix}.json"),
+            None => format!("{stem}.json"),
         }
     }
 }
@@ -116,7 +126,8 @@ impl CocoGt {
                 "no such folder: expected a BOP dataset folder",
             ));
         }
-        let (split_dir, _) = find_split(root, opts)?;
+        let (split_dir, split_type) = find_split(root, opts)?;
+        let name = dataset_name(root);
         let targets_path = root.join(&opts.targets_file);
         if !targets_path.is_file() {
             return Err(Error::format(
@@ -138,7 +149,7 @@ impl CocoGt {
         }
 
         let mut gt = CocoGt {
-            name: dataset_name(root),
+            name: name.clone(),
             split_dir: split_dir.clone(),
             bbox_type,
             images: Vec::new(),
@@ -149,7 +160,10 @@ impl CocoGt {
         };
         let mut categories = BTreeSet::new();
         for (n, &scene_id) in scene_order.iter().enumerate() {
-            let path = scene_dir(&split_dir, scene_id).join(bbox_type.file_name());
+            let dir = scene_dir(&split_dir, scene_id);
+            let sensor = eval_sensor(&name, split_type.as_deref(), scene_id)
+                .map_err(|m| Error::format(&dir, m))?;
+            let path = dir.join(bbox_type.file_name(sensor.map(|s| s.suffix)));
             if !path.is_file() {
                 return Err(Error::format(
                     &path,
