@@ -7,6 +7,7 @@
 //! - [`image_errors`]: MSSD and MSPD of every kept estimate against each instance of its object.
 //! - [`ranking`]: greedy matching per threshold and the per-object true/false positives.
 //! - [`ap`]: COCO's 101-point average precision.
+//! - [`resampling`]: bootstrap replicates of `bop24_mAP` over the target images.
 //!
 //! Like the BOP'22 2D tasks ([`crate::coco`]), this is not a [`crate::ProtocolName`]: its
 //! targets (images, not objects), its selection of estimates (a cap per image, not n_top per
@@ -31,6 +32,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::bootstrap::{self, Bootstrap, BootstrapSummary};
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::pipeline::Progress;
@@ -43,6 +45,7 @@ pub mod ap;
 pub mod image_errors;
 pub mod kept;
 pub mod ranking;
+pub mod resampling;
 
 /// The protocol's name on the command line and in reports.
 pub const PROTOCOL: &str = "bop24";
@@ -133,6 +136,35 @@ pub struct DetectionReport {
     pub bop24_average_time_per_image: f64,
     /// Per error: per-object AP at each threshold, and the precision-recall curve.
     pub errors: Vec<ErrorScores>,
+    /// The bootstrap 95 % interval of `bop24_mAP`, when the caller drew one
+    /// ([`DetectionEvaluation::bootstrap`]); absent otherwise, so reports without it read as
+    /// before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bootstrap: Option<BootstrapSummary>,
+}
+
+/// A report with what its `bop24_mAP` was accumulated from, for the mAP's bootstrap.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DetectionEvaluation {
+    pub report: DetectionReport,
+    pub outcomes: resampling::ImageOutcomes,
+}
+
+impl DetectionEvaluation {
+    /// Bootstrap replicates of `bop24_mAP` over the target images ([`resampling`]), recorded
+    /// in the report's `bootstrap`. `None` when there is nothing to resample, or when a
+    /// resampling holds no counted instance (its mAP is undefined, so no interval is claimed).
+    pub fn bootstrap(&mut self, seed: u64, replicates: usize) -> Option<Bootstrap> {
+        let outcomes = &self.outcomes;
+        if outcomes.objects.is_empty() {
+            return None;
+        }
+        let b = bootstrap::resample(outcomes.images(), seed, replicates, |w| {
+            outcomes.weighted_map(w)
+        })?;
+        self.report.bootstrap = Some(b.summary());
+        Some(b)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -184,6 +216,17 @@ pub fn evaluate(
     progress: &dyn Progress,
     cancel: &AtomicBool,
 ) -> Result<DetectionReport> {
+    evaluation(dataset, results, max_estimates_per_image, progress, cancel).map(|e| e.report)
+}
+
+/// [`evaluate`], keeping what a bootstrap of `bop24_mAP` needs.
+pub fn evaluation(
+    dataset: &Dataset,
+    results: &Results,
+    max_estimates_per_image: usize,
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+) -> Result<DetectionEvaluation> {
     if max_estimates_per_image == 0 {
         return Err(Error::Parameters(
             "max_estimates_per_image must be at least 1".into(),
@@ -212,10 +255,24 @@ pub fn evaluate(
         .collect::<Result<_>>()?;
 
     let ranking = ranking::Ranking::new(dataset, &computed);
-    let errors: Vec<ErrorScores> = DetectionError::ALL
+    let (errors, mut ranked): (Vec<ErrorScores>, Vec<_>) = DetectionError::ALL
         .iter()
         .map(|&error| ranking.scores(dataset, &computed, error))
-        .collect();
+        .unzip();
+    let mut by_name: Vec<u32> = ranking.counted_per_image().keys().copied().collect();
+    by_name.sort_by_key(|o| o.to_string());
+    let mspd = ranked.remove(2);
+    let mssd = ranked.remove(0);
+    let outcomes = resampling::ImageOutcomes {
+        images: images.len(),
+        objects: by_name
+            .iter()
+            .map(|obj_id| resampling::ObjectOutcomes {
+                counted: ranking.counted_per_image()[obj_id].clone(),
+                ranked: [mssd[obj_id].clone(), mspd[obj_id].clone()],
+            })
+            .collect(),
+    };
     let map = |e: DetectionError| {
         errors
             .iter()
@@ -227,7 +284,7 @@ pub fn evaluate(
         map(DetectionError::MssdMm),
         map(DetectionError::Mspd),
     );
-    Ok(DetectionReport {
+    let report = DetectionReport {
         evaluator_version: EVALUATOR_VERSION.to_string(),
         dataset: dataset.name.clone(),
         protocol: PROTOCOL.to_string(),
@@ -251,7 +308,9 @@ pub fn evaluate(
         bop25_map_mm: mssd_mm,
         bop24_average_time_per_image: average_time.unwrap_or(-1.0),
         errors,
-    })
+        bootstrap: None,
+    };
+    Ok(DetectionEvaluation { report, outcomes })
 }
 
 /// What a result file covers of a dataset's detection targets, known before any error is

@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 
 use evaluator::dataset::{DatasetOptions, TargetsForm};
 use evaluator::detection::{self, DetectionError, DetectionReport};
-use evaluator::{Dataset, NoProgress, results};
+use evaluator::{Dataset, NoProgress, bootstrap, results};
 use serde_json::Value;
 
 const CASES: [&str; 5] = ["gtexact", "noisy", "extra", "ties", "capped"];
@@ -225,4 +225,61 @@ fn the_cap_keeps_the_best_scored_over_all_objects() {
         .is_err()
     );
     assert_eq!(DetectionError::MssdMm.thresholds()[9], 20.0);
+}
+
+#[test]
+fn the_bootstrap_of_the_map_is_the_report_at_unit_weights_and_reproducible() {
+    for name in DATASETS {
+        for case in ["noisy", "ties", "capped"] {
+            let results = results::load_results(&result_file(name, case)).unwrap();
+            let run = || {
+                detection::evaluation(
+                    dataset(name),
+                    &results,
+                    detection::default_max_estimates_per_image(name),
+                    &NoProgress,
+                    &AtomicBool::new(false),
+                )
+                .unwrap()
+            };
+            let mut evaluation = run();
+            let ones = vec![1; evaluation.outcomes.images()];
+            assert_eq!(
+                evaluation.outcomes.weighted_map(&ones).unwrap().to_bits(),
+                evaluation.report.bop24_map.to_bits(),
+                "{name} {case}"
+            );
+            // An image counted twice is an image whose instances and estimates are there twice.
+            let mut twice = ones.clone();
+            twice[0] = 2;
+            assert_ne!(evaluation.outcomes.weighted_map(&twice), None);
+            let b = evaluation
+                .bootstrap(bootstrap::dataset_seed(name), 200)
+                .expect("replicates");
+            assert_eq!(b.replicates.len(), 200);
+            let summary = evaluation.report.bootstrap.clone().expect("recorded");
+            assert_eq!(summary.ci95, b.ci95());
+            assert!(summary.ci95[0] <= summary.ci95[1], "{name} {case}");
+            assert!(b.replicates.iter().all(|r| (0.0..=1.0).contains(r)));
+            assert!(
+                b.replicates
+                    .iter()
+                    .any(|r| *r != evaluation.report.bop24_map),
+                "{name} {case}: the replicates vary"
+            );
+            assert_eq!(run().bootstrap(bootstrap::dataset_seed(name), 200), Some(b));
+        }
+    }
+    // A perfect file is perfect in every replicate.
+    let results = results::load_results(&result_file("synthA", "gtexact")).unwrap();
+    let mut exact = detection::evaluation(
+        dataset("synthA"),
+        &results,
+        100,
+        &NoProgress,
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    let b = exact.bootstrap(1, 50).expect("replicates");
+    assert!(b.replicates.iter().all(|r| *r == 1.0));
 }

@@ -24,14 +24,37 @@ fn recall_point(i: usize) -> f64 {
 /// over the points at or beyond each recall point; the order of points with equal recall does
 /// not change a maximum, so the toolkit's unstable `argsort` of the recalls needs no copy.
 pub fn interpolated_precision(outcomes: &[bool], instances: usize) -> [f64; RECALL_POINTS] {
+    curve(outcomes.iter().copied(), outcomes.len(), instances)
+}
+
+/// [`interpolated_precision`] with image `i` counted `weights[i]` times (a bootstrap
+/// replicate): each of `ranked`'s estimates, `(image, true positive)`, stands `weights[image]`
+/// times in a row, against `instances` counted instances of the replicate. With every weight 1,
+/// the same numbers to the last bit.
+pub fn weighted_precision(
+    ranked: &[(u32, bool)],
+    weights: &[u32],
+    instances: usize,
+) -> [f64; RECALL_POINTS] {
+    let copies =
+        |&(image, hit): &(u32, bool)| std::iter::repeat_n(hit, weights[image as usize] as usize);
+    let len = ranked.iter().map(|r| weights[r.0 as usize] as usize).sum();
+    curve(ranked.iter().flat_map(copies), len, instances)
+}
+
+fn curve(
+    outcomes: impl Iterator<Item = bool>,
+    len: usize,
+    instances: usize,
+) -> [f64; RECALL_POINTS] {
     let n = instances as f64;
     // The padded curve (recall, precision); the recalls never decrease along it.
-    let mut recalls = Vec::with_capacity(outcomes.len() + 2);
-    let mut precisions = Vec::with_capacity(outcomes.len() + 2);
+    let mut recalls = Vec::with_capacity(len + 2);
+    let mut precisions = Vec::with_capacity(len + 2);
     recalls.push(0.0);
     precisions.push(0.0);
     let mut tp = 0usize;
-    for (i, &hit) in outcomes.iter().enumerate() {
+    for (i, hit) in outcomes.enumerate() {
         tp += usize::from(hit);
         recalls.push(tp as f64 / n);
         precisions.push(tp as f64 / (i + 1) as f64);

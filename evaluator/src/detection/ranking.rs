@@ -16,6 +16,9 @@ use super::{DetectionError, ErrorScores, ObjectAp, VISIB_GT_MIN};
 /// Where an estimate is: (image, object within the image, estimate within the object).
 type Place = (usize, usize, usize);
 
+/// Per object, per threshold: its ranked estimates as (image, true positive).
+pub type RankedByImage = BTreeMap<u32, Vec<Vec<(u32, bool)>>>;
+
 /// The order of every object's estimates, and its counted instances; the same at every
 /// threshold, so computed once.
 pub struct Ranking {
@@ -25,6 +28,8 @@ pub struct Ranking {
     order: BTreeMap<u32, Vec<Place>>,
     /// Per object: instances at least [`VISIB_GT_MIN`] visible (only objects with some).
     counted: BTreeMap<u32, usize>,
+    /// Per object: the images with such instances, and how many each has.
+    counted_per_image: BTreeMap<u32, Vec<(u32, u32)>>,
     instances: usize,
 }
 
@@ -40,6 +45,7 @@ enum Outcome {
 impl Ranking {
     pub fn new(dataset: &Dataset, images: &[ImageErrors]) -> Self {
         let mut counted: BTreeMap<u32, usize> = BTreeMap::new();
+        let mut counted_per_image: BTreeMap<u32, Vec<(u32, u32)>> = BTreeMap::new();
         let mut instances = 0;
         let mut scored: BTreeMap<u32, Vec<(f64, Place)>> = BTreeMap::new();
         for (i, im) in images.iter().enumerate() {
@@ -53,6 +59,10 @@ impl Ranking {
                     .count();
                 if visible > 0 {
                     *counted.entry(obj.obj_id).or_default() += visible;
+                    counted_per_image
+                        .entry(obj.obj_id)
+                        .or_default()
+                        .push((i as u32, visible as u32));
                 }
                 let list = scored.entry(obj.obj_id).or_default();
                 list.extend(
@@ -75,6 +85,7 @@ impl Ranking {
         Ranking {
             order,
             counted,
+            counted_per_image,
             instances,
         }
     }
@@ -89,13 +100,20 @@ impl Ranking {
         self.counted.values().sum()
     }
 
-    /// Per-object AP at each of `error`'s thresholds, their means and the mean curve.
+    /// Per object with a counted instance: the images holding such instances and how many.
+    pub fn counted_per_image(&self) -> &BTreeMap<u32, Vec<(u32, u32)>> {
+        &self.counted_per_image
+    }
+
+    /// Per-object AP at each of `error`'s thresholds, their means and the mean curve; and per
+    /// object, per threshold, its ranked estimates as (image, true positive), the ignored ones
+    /// left out (what a bootstrap replicate re-weights).
     pub fn scores(
         &self,
         dataset: &Dataset,
         images: &[ImageErrors],
         error: DetectionError,
-    ) -> ErrorScores {
+    ) -> (ErrorScores, RankedByImage) {
         let thresholds = error.thresholds();
         // MSPD is normalised by the width of the scene's evaluated sensor, as the toolkit does
         // (HOT3D's two headsets differ).
@@ -105,19 +123,22 @@ impl Ranking {
             DetectionError::Mspd => 640.0 / f64::from(dataset.image_width(scene_id)) * e.mspd[i],
         };
         let mut curves: BTreeMap<u32, Vec<[f64; RECALL_POINTS]>> = BTreeMap::new();
+        let mut ranked_images = RankedByImage::new();
         for &threshold in &thresholds {
             let outcomes = outcomes(dataset, images, threshold, &normalised);
             for (obj_id, order) in &self.order {
-                let ranked: Vec<bool> = order
+                let ranked: Vec<(u32, bool)> = order
                     .iter()
-                    .map(|&(i, o, e)| outcomes[i][o][e])
-                    .filter(|&x| x != Outcome::Ignored)
-                    .map(|x| x == Outcome::TruePositive)
+                    .map(|&(i, o, e)| (i as u32, outcomes[i][o][e]))
+                    .filter(|&(_, x)| x != Outcome::Ignored)
+                    .map(|(i, x)| (i, x == Outcome::TruePositive))
                     .collect();
+                let hits: Vec<bool> = ranked.iter().map(|r| r.1).collect();
                 curves
                     .entry(*obj_id)
                     .or_default()
-                    .push(ap::interpolated_precision(&ranked, self.counted[obj_id]));
+                    .push(ap::interpolated_precision(&hits, self.counted[obj_id]));
+                ranked_images.entry(*obj_id).or_default().push(ranked);
             }
         }
         let objects: Vec<ObjectAp> = curves
@@ -151,13 +172,14 @@ impl Ranking {
                 })
                 .collect()
         };
-        ErrorScores {
+        let scores = ErrorScores {
             error,
             thresholds,
             map,
             objects,
             precision_recall,
-        }
+        };
+        (scores, ranked_images)
     }
 }
 
