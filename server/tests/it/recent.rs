@@ -251,7 +251,7 @@ fn the_recent_list_pages_newest_first(kind: Db) {
         "{kind:?}: the name is escaped"
     );
     assert!(
-        page.contains("by <span class=\"owner\">anonymous</span>"),
+        page.contains("by <span class=\"who\">anonymous</span>"),
         "{kind:?}"
     );
     assert!(
@@ -265,7 +265,7 @@ fn the_recent_list_pages_newest_first(kind: Db) {
     );
     assert!(!second.contains("rel=\"next\""), "{kind:?}");
     assert!(
-        second.contains("by <span class=\"owner\">tester</span>"),
+        second.contains("by <span class=\"who\">tester</span>"),
         "{kind:?}"
     );
     for path in ["/", "/submissions"] {
