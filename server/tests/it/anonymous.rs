@@ -364,5 +364,16 @@ fn the_upload_form_makes_a_method_anonymous(kind: Db) {
     assert_eq!(board_owner(&board, "form-blind"), "anonymous", "{kind:?}");
     let (_, page) = public(&base, &format!("/submissions/{second}"));
     assert_eq!(leak(&page), None, "{kind:?}");
+
+    // No account may pass for an anonymous method's owner.
+    for name in ["anonymous", "Anonymous"] {
+        let r = client()
+            .post(format!("{base}/register"))
+            .form(&[("name", name), ("password", "correct horse battery")])
+            .send()
+            .expect("answered");
+        assert_eq!(r.status(), 409, "{kind:?} {name}");
+        assert!(r.text().expect("page").contains("reserved"), "{kind:?}");
+    }
 }
 both_databases!(the_upload_form_makes_a_method_anonymous);
