@@ -554,6 +554,36 @@ pub struct MethodForm {
     pub detections: Option<String>,
     pub model_scope: Option<String>,
     pub hardware: Option<String>,
+    /// `true`: under double-blind review (see [`MethodDetails::anonymous`]).
+    #[serde(default, deserialize_with = "text_or_flag")]
+    pub anonymous: Option<String>,
+}
+
+/// A flag sent as a JSON boolean or as text (forms send text, and a flattened form cannot
+/// deserialize a boolean).
+fn text_or_flag<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Flag {
+        Text(String),
+        Bool(bool),
+    }
+    Ok(Option::<Flag>::deserialize(d)?.map(|f| match f {
+        Flag::Text(t) => t,
+        Flag::Bool(b) => b.to_string(),
+    }))
+}
+
+/// A yes-or-no field sent as text: `true` or `false` (empty is `false`), nothing else.
+pub fn flag(field: &'static str, value: &str) -> Result<bool, FieldError> {
+    match value.trim() {
+        "true" => Ok(true),
+        "false" | "" => Ok(false),
+        other => Err(FieldError::new(
+            field,
+            format!("is true or false, not `{other}`"),
+        )),
+    }
 }
 
 /// A year sent as a JSON number or as text (forms send text).
@@ -587,6 +617,9 @@ pub struct MethodDetails {
     pub detections: Note,
     pub model_scope: Option<ModelScope>,
     pub hardware: Hardware,
+    /// Under double-blind review: everyone but its owner and the administrators is shown
+    /// "anonymous" instead of the owner, and no authors, paper or code links.
+    pub anonymous: bool,
 }
 
 impl MethodForm {
@@ -608,6 +641,7 @@ impl MethodForm {
             detections: Note::parse("detections", &text(self.detections, stored.detections))?,
             model_scope: optional(&text(self.model_scope, stored.model_scope))?,
             hardware: Hardware::parse(&text(self.hardware, stored.hardware))?,
+            anonymous: flag("anonymous", &text(self.anonymous, stored.anonymous))?,
         })
     }
 }
@@ -619,6 +653,30 @@ pub fn optional<T: FromStr<Err = FieldError>>(value: &str) -> Result<Option<T>, 
         Ok(None)
     } else {
         value.parse().map(Some)
+    }
+}
+
+/// A page of a paged list (`?page=N`), from 1. Bounded, so that no offset overflows and no
+/// reader asks the database to skip more rows than a list will ever hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct PageNumber(u32);
+
+impl PageNumber {
+    pub const FIRST: PageNumber = PageNumber(1);
+    const LAST: u32 = 100_000;
+
+    pub fn parse(value: &str) -> Result<PageNumber, FieldError> {
+        match value.trim().parse::<u32>() {
+            Ok(n) if (1..=Self::LAST).contains(&n) => Ok(PageNumber(n)),
+            _ => Err(FieldError::new(
+                "page",
+                format!("is a page number from 1 to {}, not `{value}`", Self::LAST),
+            )),
+        }
+    }
+
+    pub fn get(self) -> u32 {
+        self.0
     }
 }
 
@@ -679,6 +737,20 @@ mod tests {
             e.to_string(),
             "field `training_data` must be one of synthetic, real, both"
         );
+    }
+
+    #[test]
+    fn flags_and_pages_are_strict() {
+        assert_eq!(flag("anonymous", " true "), Ok(true));
+        assert_eq!(flag("anonymous", ""), Ok(false));
+        assert_eq!(
+            flag("anonymous", "yes").unwrap_err().to_string(),
+            "field `anonymous` is true or false, not `yes`"
+        );
+        assert_eq!(PageNumber::parse("2").map(PageNumber::get), Ok(2));
+        for bad in ["0", "-1", "x", "", "100001", "99999999999"] {
+            assert!(PageNumber::parse(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -48,6 +48,20 @@ pub fn utc_minute(ms: i64) -> String {
     )
 }
 
+/// Epoch milliseconds as RFC 3339 in UTC to the second, "2026-12-02T15:10:05Z": the dates of
+/// a feed, which readers parse.
+pub fn rfc3339(ms: i64) -> String {
+    let secs = ms.div_euclid(1000);
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    let (y, m, d) = civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
 /// Days since 1970-01-01 to a proleptic Gregorian date (H. Hinnant's algorithm).
 fn civil_from_days(z: i64) -> (i64, i64, i64) {
     let z = z + 719_468;
@@ -88,6 +102,8 @@ mod tests {
         // 2026-12-01 15:13 UTC plus 23 h 57 min.
         let now = 1_796_138_000_000;
         assert_eq!(utc_minute(now), "2026-12-01 15:13 UTC");
+        assert_eq!(rfc3339(now + 5_999), "2026-12-01T15:13:25Z");
+        assert_eq!(rfc3339(0), "1970-01-01T00:00:00Z");
         assert_eq!(
             wait_until(86_220.0, now),
             "in 23 h 57 min (2026-12-02 15:10 UTC)"

@@ -14,6 +14,7 @@ use crate::app::App;
 use crate::clock::now_ms;
 use crate::domain::{Password, TokenLabel, UserId, UserName, normalized};
 use crate::error::{AppError, AppResult};
+use crate::service::visibility;
 use crate::store::accounts::{Counter, Session, TokenRow, User};
 use crate::store::{Store, StoreError};
 
@@ -264,13 +265,20 @@ pub async fn sign_in(
     Ok(Some(user))
 }
 
-/// Creates an account; a taken name is a conflict that says so.
+/// Creates an account; a taken name is a conflict that says so, and so is "anonymous" (in any
+/// case): the boards show it for the owners of methods under double-blind review, and an
+/// account of that name would pass for one of them.
 pub async fn register(
     store: &Store,
     name: &UserName,
     password: &Password,
     is_admin: bool,
 ) -> AppResult<UserId> {
+    if name.as_str().eq_ignore_ascii_case(visibility::ANONYMOUS) {
+        return Err(AppError::Conflict(format!(
+            "the name `{name}` is reserved: the boards show it for methods under double-blind review"
+        )));
+    }
     let hash = hash_password(password).await?;
     match store.create_user(name, &hash, is_admin).await {
         Ok(id) => Ok(id),

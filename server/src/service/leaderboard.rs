@@ -22,6 +22,7 @@ use crate::domain::{
 };
 use crate::error::{AppError, AppResult};
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
+use crate::service::visibility;
 use crate::store::board_rows::EntryHead;
 use crate::store::bop24_scores::Bop24BoardEntry;
 use crate::store::coco_scores::CocoBoardEntry;
@@ -474,12 +475,13 @@ fn headline(head: &EntryHead, score: f64, time: Option<f64>) -> Cell {
 }
 
 /// A board's entry: who the method is, from the row every board reads alike, and its cell.
+/// Every reader sees a board alike, so an anonymous method's owner is never named on one.
 fn entry(head: EntryHead, cell: Cell, objects: BTreeMap<i64, f64>) -> Entry {
     Entry {
         cell,
         method_id: head.method_id,
         method: head.method,
-        owner: head.owner,
+        owner: visibility::public_owner(head.owner, head.anonymous),
         training_data: head.training_data,
         modality: head.modality,
         hardware: head.hardware,

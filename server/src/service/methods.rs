@@ -38,8 +38,9 @@ fn may_change(user: &User, owner: Option<UserId>) -> bool {
     user.is_admin || owner == Some(user.id)
 }
 
-/// Replaces the details `form` gives (the others stay) and returns the method as stored.
-pub async fn edit(app: &App, user: &User, id: MethodId, form: MethodForm) -> AppResult<MethodRow> {
+/// Method `id` if `user` may change it; a method they can see but not change is refused
+/// (403, naming no one), one they cannot see is missing.
+async fn changeable(app: &App, user: &User, id: MethodId) -> AppResult<MethodRow> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
     if !may_change(user, method.owner_id) {
         let public = !app.store.public_submissions_of_method(id).await?.is_empty();
@@ -49,8 +50,23 @@ pub async fn edit(app: &App, user: &User, id: MethodId, form: MethodForm) -> App
             AppError::NotFound
         });
     }
+    Ok(method)
+}
+
+/// Replaces the details `form` gives (the others stay) and returns the method as stored.
+pub async fn edit(app: &App, user: &User, id: MethodId, form: MethodForm) -> AppResult<MethodRow> {
+    let method = changeable(app, user, id).await?;
     let details = form.parse(method.as_form())?;
     app.store.set_method_details(id, &details).await?;
+    app.store.method(id).await?.ok_or(AppError::NotFound)
+}
+
+/// Ends a method's double-blind review in one action, its owner's (or an administrator's):
+/// every live page, board and list names the owner again, with the authors and links. A
+/// snapshot taken meanwhile stays as it was taken, anonymous: it is a frozen record.
+pub async fn reveal(app: &App, user: &User, id: MethodId) -> AppResult<MethodRow> {
+    changeable(app, user, id).await?;
+    app.store.set_method_anonymous(id, false).await?;
     app.store.method(id).await?.ok_or(AppError::NotFound)
 }
 

@@ -19,8 +19,11 @@ use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
 pub struct EntryHead {
     pub method_id: MethodId,
     pub method: String,
-    /// The name of the account the method belongs to.
+    /// The name of the account the method belongs to (whether the public is told it is the
+    /// service's rule, by `anonymous`).
     pub owner: String,
+    /// The method is under double-blind review.
+    pub anonymous: bool,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
     pub hardware: String,
@@ -34,7 +37,7 @@ pub struct EntryHead {
 /// The columns [`head`] reads (all but `submission_id`, which each board's score table gives),
 /// for a query that joins `submissions s` with [`HEAD_JOINS`].
 pub(super) const HEAD_COLUMNS: &str = "s.method_id, m.name AS method, \
-     COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
+     COALESCE(u.name, '') AS owner, m.anonymous, m.training_data, m.modality, m.hardware, \
      s.dataset_id, d.name AS dataset, \
      CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
      THEN 1 ELSE 0 END AS BIGINT) AS pinned";
@@ -48,6 +51,7 @@ pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
         method_id: row.try_get("method_id")?,
         method: row.try_get("method")?,
         owner: row.try_get("owner")?,
+        anonymous: row.try_get::<i64, _>("anonymous")? != 0,
         training_data: optional_column(row, "training_data")?,
         modality: optional_column(row, "modality")?,
         hardware: row.try_get("hardware")?,

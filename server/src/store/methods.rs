@@ -34,6 +34,8 @@ pub struct MethodRow {
     pub model_scope: Option<ModelScope>,
     /// What the reported times were measured on.
     pub hardware: String,
+    /// Under double-blind review: its owner is not named to the public until revealed.
+    pub anonymous: bool,
     pub created_at: i64,
 }
 
@@ -54,6 +56,7 @@ impl MethodRow {
             detections: Some(self.detections.clone()),
             model_scope: word(self.model_scope.map(|m| m.as_str())),
             hardware: Some(self.hardware.clone()),
+            anonymous: Some(self.anonymous.to_string()),
         }
     }
 }
@@ -67,6 +70,8 @@ pub struct MethodMeta {
     pub code_url: Link,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    /// Under double-blind review from now on (`Some(true)`) or not; `None` leaves it.
+    pub anonymous: Option<bool>,
 }
 
 /// An optional enumeration stored as text, empty when not given.
@@ -104,6 +109,7 @@ pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
         detections: row.try_get("detections")?,
         model_scope: optional_column(row, "model_scope")?,
         hardware: row.try_get("hardware")?,
+        anonymous: row.try_get::<i64, _>("anonymous")? != 0,
         created_at: row.try_get("created_at")?,
     })
 }
@@ -137,7 +143,8 @@ impl Store {
         let done = sqlx::query(
             "UPDATE methods SET description = $1, authors = $2, year = $3, paper_url = $4, \
              code_url = $5, training_data = $6, detection_modality = $7, modality = $8, \
-             refinement = $9, detections = $10, model_scope = $11, hardware = $12 WHERE id = $13",
+             refinement = $9, detections = $10, model_scope = $11, hardware = $12, \
+             anonymous = $13 WHERE id = $14",
         )
         .bind(d.description.as_str())
         .bind(d.authors.as_str())
@@ -151,9 +158,23 @@ impl Store {
         .bind(d.detections.as_str())
         .bind(word(d.model_scope.map(|m| m.as_str())))
         .bind(d.hardware.as_str())
+        .bind(i64::from(d.anonymous))
         .bind(id)
         .execute(&mut *tx)
         .await?;
+        self.commit_board_change(tx, done.rows_affected() == 1)
+            .await
+    }
+
+    /// Ends (or starts) a method's double-blind review: the boards name its owner again at
+    /// once, so the board version moves. False when there is no such method.
+    pub async fn set_method_anonymous(&self, id: MethodId, anonymous: bool) -> StoreResult<bool> {
+        let mut tx = self.write_transaction().await?;
+        let done = sqlx::query("UPDATE methods SET anonymous = $1 WHERE id = $2")
+            .bind(i64::from(anonymous))
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
         self.commit_board_change(tx, done.rows_affected() == 1)
             .await
     }

@@ -148,6 +148,21 @@ impl SubmissionRow {
     }
 }
 
+/// A public finished submission as the recent list names it.
+#[derive(Clone, Debug)]
+pub struct RecentRow {
+    pub submission: SubmissionRow,
+    /// The name of the account its method belongs to.
+    pub owner: String,
+    /// Its method is under double-blind review.
+    pub anonymous: bool,
+    /// Its headline scores: the 6D protocols' (AR, recall), a 2D task's AP, bop24's mAP.
+    pub bop19: Option<f64>,
+    pub eccv18: Option<f64>,
+    pub ap: Option<f64>,
+    pub map: Option<f64>,
+}
+
 /// A submission to create, with the method it is for.
 pub struct NewSubmission<'a> {
     pub owner_id: UserId,
@@ -446,16 +461,43 @@ impl Store {
         rows.iter().map(submission).collect()
     }
 
-    /// Public submissions, newest first.
-    pub async fn recent_public_submissions(&self, limit: i64) -> StoreResult<Vec<SubmissionRow>> {
+    /// A page of the public finished submissions, newest first: `limit` of them after the
+    /// `offset` newest, each with its method's owner and headline scores.
+    pub async fn recent_public_finished(
+        &self,
+        limit: i64,
+        offset: i64,
+    ) -> StoreResult<Vec<RecentRow>> {
         let sql = format!(
-            "SELECT {SUBMISSION_COLUMNS} WHERE s.public = 1 AND s.hidden = 0 ORDER BY s.id DESC LIMIT $1"
+            "SELECT COALESCE(u.name, '') AS owner, m.anonymous, \
+             (SELECT sc.score FROM scores sc WHERE sc.submission_id = s.id \
+             AND sc.protocol = 'bop19') AS bop19, \
+             (SELECT sc.score FROM scores sc WHERE sc.submission_id = s.id \
+             AND sc.protocol = 'eccv18') AS eccv18, \
+             (SELECT c.ap FROM coco_scores c WHERE c.submission_id = s.id) AS ap, \
+             (SELECT b.map FROM bop24_scores b WHERE b.submission_id = s.id) AS map, \
+             {SUBMISSION_COLUMNS} LEFT JOIN users u ON u.id = m.owner_id \
+             WHERE s.public = 1 AND s.hidden = 0 AND s.status = 'done' \
+             ORDER BY s.id DESC LIMIT $1 OFFSET $2"
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(limit)
+            .bind(offset)
             .fetch_all(&self.pool)
             .await?;
-        rows.iter().map(submission).collect()
+        rows.iter()
+            .map(|r| {
+                Ok(RecentRow {
+                    submission: submission(r)?,
+                    owner: r.try_get("owner")?,
+                    anonymous: r.try_get::<i64, _>("anonymous")? != 0,
+                    bop19: r.try_get("bop19")?,
+                    eccv18: r.try_get("eccv18")?,
+                    ap: r.try_get("ap")?,
+                    map: r.try_get("map")?,
+                })
+            })
+            .collect()
     }
 
     /// Whether any submission exists at all (the demo set-up runs on an empty service only).
@@ -765,8 +807,8 @@ async fn create_one(
         }
         None => sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-             modality, created_at, owner_id, hardware) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) \
-             RETURNING id",
+             modality, created_at, owner_id, hardware, anonymous) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) RETURNING id",
         )
         .bind(new.method.as_str())
         .bind(new.meta.description.as_str())
@@ -777,6 +819,7 @@ async fn create_one(
         .bind(now)
         .bind(new.owner_id)
         .bind(new.hardware.as_str())
+        .bind(i64::from(new.meta.anonymous == Some(true)))
         .fetch_one(&mut **tx)
         .await?
         .try_get("id")?,
@@ -847,6 +890,14 @@ async fn update_method_meta(
                 .await?;
             written = true;
         }
+    }
+    if let Some(anonymous) = meta.anonymous {
+        sqlx::query("UPDATE methods SET anonymous = $1 WHERE id = $2")
+            .bind(i64::from(anonymous))
+            .bind(id)
+            .execute(&mut **tx)
+            .await?;
+        written = true;
     }
     Ok(written)
 }

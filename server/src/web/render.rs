@@ -4,5 +4,6 @@
 
 pub mod chart;
 pub mod exports;
+pub mod feed;
 pub mod openapi;
 pub mod overlay;

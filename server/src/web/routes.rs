@@ -10,6 +10,7 @@ pub mod exports;
 pub mod limits;
 pub mod ops;
 pub mod pages;
+pub mod recent;
 pub mod rescoring;
 pub mod snapshots;
 pub mod submissions;
@@ -64,6 +65,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(targets::page_router())
         .merge(exports::router())
         .merge(rescoring::page_router())
+        .merge(recent::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()

@@ -14,9 +14,12 @@ use serde::Serialize;
 
 use crate::app::App;
 use crate::clock::now_ms;
-use crate::domain::{BoardProtocol, CocoProtocol, MethodId, SnapshotId, SubmissionId, Task};
+use crate::domain::{
+    BoardProtocol, CocoProtocol, MethodId, PageNumber, SnapshotId, SubmissionId, Task,
+};
 use crate::error::AppResult;
 use crate::preflight::Preflight;
+use crate::service::catalogue::{self, RECENT_PER_PAGE, RecentPage};
 use crate::service::leaderboard::{self, Curves};
 pub use crate::service::leaderboard::{BoardFilter, OVERLAID, core_datasets};
 pub use crate::service::ranking::{BoardRow, Cell};
@@ -553,5 +556,41 @@ pub async fn my_submissions(app: &App, user: &User) -> AppResult<MySubmissions> 
                 submission: o.submission,
             })
             .collect(),
+    })
+}
+
+/// A page of the recent submissions, as its HTML page and `GET /api/v1/submissions` show it.
+#[derive(Clone, Debug, Serialize)]
+pub struct RecentList {
+    #[serde(flatten)]
+    pub list: RecentPage,
+    pub per_page: u32,
+    /// The page numbers of the newer and the older submissions (none at either end).
+    pub newer: Option<u32>,
+    pub older: Option<u32>,
+    /// The Atom feed of the newest page.
+    pub feed: &'static str,
+}
+
+/// The path of the recent list's page `page` under `base` (`/submissions` or its JSON twin):
+/// the first page is the bare path.
+pub fn recent_href(base: &str, page: u32) -> String {
+    if page <= 1 {
+        base.to_string()
+    } else {
+        format!("{base}?page={page}")
+    }
+}
+
+/// Page `page` of the recent submissions, with the links to its neighbours.
+pub async fn recent(app: &App, page: PageNumber) -> AppResult<RecentList> {
+    let list = catalogue::recent(app, page).await?;
+    let n = page.get();
+    Ok(RecentList {
+        per_page: RECENT_PER_PAGE,
+        newer: (n > 1).then(|| n - 1),
+        older: list.more.then(|| n + 1),
+        feed: "/submissions.atom",
+        list,
     })
 }

@@ -329,9 +329,12 @@ fn upload_files(
         .expect("upload answered")
 }
 
+/// How many submissions `tester` has stored, whatever their state (the public list shows
+/// finished ones only, and these are counted as soon as an upload is answered).
 fn submissions_count(server: &common::Server) -> usize {
     let r = client()
-        .get(format!("{}/api/v1/submissions", server.base))
+        .get(format!("{}/api/v1/me/submissions", server.base))
+        .bearer_auth(&server.token)
         .send()
         .expect("answered");
     let body: Value = r.json().expect("json");

@@ -12,6 +12,7 @@
 
 mod accounts;
 mod admin;
+mod anonymous;
 mod backup;
 mod board_cache;
 mod bop24;
@@ -44,6 +45,7 @@ mod prepare_cli;
 mod publishing;
 mod ranking;
 mod reader_pages;
+mod recent;
 mod recovery;
 mod reupload;
 mod scale_out;

@@ -370,6 +370,31 @@ fn submissions_queue_and_scores(kind: Db) {
                 .is_empty()
         );
 
+        // The recent list names the owner and the headline scores; an anonymous method says
+        // so on the rows every board reads, and in the list, until it is revealed.
+        let recent = store.recent_public_finished(10, 0).await.unwrap();
+        assert_eq!(recent.len(), 1);
+        assert_eq!(recent[0].submission.id, id);
+        assert_eq!(recent[0].bop19, Some(reports[0].headline()));
+        assert_eq!((recent[0].ap, recent[0].map), (None, None));
+        assert_eq!(recent[0].owner, "alice");
+        assert!(!recent[0].anonymous && !board[0].head.anonymous);
+        assert!(
+            store
+                .recent_public_finished(10, 1)
+                .await
+                .unwrap()
+                .is_empty()
+        );
+        let method_id = board[0].head.method_id;
+        assert!(store.set_method_anonymous(method_id, true).await.unwrap());
+        assert!(store.method(method_id).await.unwrap().unwrap().anonymous);
+        assert!(store.recent_public_finished(10, 0).await.unwrap()[0].anonymous);
+        let board_now = store.leaderboard(ProtocolName::Bop19, None).await.unwrap();
+        assert!(board_now[0].head.anonymous);
+        assert!(store.set_method_anonymous(method_id, false).await.unwrap());
+        assert!(!store.method(method_id).await.unwrap().unwrap().anonymous);
+
         // Hidden: off the boards; re-run: queued again; delete: gone, file unused.
         assert!(store.set_hidden(id, true).await.unwrap());
         assert!(
@@ -381,7 +406,7 @@ fn submissions_queue_and_scores(kind: Db) {
         );
         assert!(
             store
-                .recent_public_submissions(10)
+                .recent_public_finished(10, 0)
                 .await
                 .unwrap()
                 .is_empty()

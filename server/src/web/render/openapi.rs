@@ -74,7 +74,7 @@ fn paths() -> Value {
                 "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["core"], "properties": { "core": { "type": "boolean" } } } } } },
                 "responses": { "200": { "description": "{ok, dataset, core}" }, "404": { "description": "no such served dataset, or not an administrator" } } } },
             "/api/v1/submissions": {
-                "get": { "summary": "Recent public submissions", "responses": { "200": { "description": "{submissions: [...]}" } } },
+                "get": { "summary": "The public finished submissions, newest first (see below)" },
                 "post": {
                     "summary": "Upload result files (BOP'19 CSV, or BOP'22 2D JSON; one per dataset) for evaluation",
                     "security": [{ "bearer": [] }],
@@ -208,8 +208,37 @@ fn paths() -> Value {
                 "responses": { "201": { "description": "{id, taken_at, taken_by, url, boards: [...]} as listed by /api/v1/snapshots" }, "404": { "description": "not an administrator" } } } },
             "/api/v1/openapi.json": { "get": { "summary": "This document", "responses": { "200": { "description": "OpenAPI 3.1" } } } }
     });
-    if let (Some(paths), Value::Object(more)) = (doc["paths"].as_object_mut(), more) {
-        paths.extend(more);
+    let review = json!({
+            "/api/v1/methods/{id}/reveal": { "post": { "summary": "End a method's double-blind review (its owner or an administrator): every live page, board and list names the owner again, with the authors and links; snapshots taken meanwhile stay anonymous",
+                "security": [{ "bearer": [] }], "parameters": [id_param],
+                "responses": { "200": { "description": "{method}" }, "403": { "description": "not the method's owner" }, "404": { "description": "no such method the caller may see" } } } }
+    });
+    for more in [more, review] {
+        if let (Some(paths), Value::Object(more)) = (doc["paths"].as_object_mut(), more) {
+            paths.extend(more);
+        }
+    }
+    // Set apart: one `json!` of the whole document would pass the macro's recursion limit.
+    let anonymous = "true: under double-blind review; everyone but the owner and the administrators sees `anonymous` as its owner, without authors, paper or code links, on every page, board, export, snapshot and feed";
+    let fields = [
+        (
+            "/paths/~1api~1v1~1methods~1{id}/post/requestBody/content/application~1json/schema/properties",
+            json!({ "type": ["boolean", "string"], "description": anonymous }),
+        ),
+        (
+            "/paths/~1api~1v1~1submissions/post/requestBody/content/multipart~1form-data/schema/properties",
+            json!({ "type": "string", "enum": ["true", "false"], "description": format!("{anonymous}; left out, the method stays as it is") }),
+        ),
+    ];
+    for (at, field) in fields {
+        if let Some(Value::Object(properties)) = doc.pointer_mut(at) {
+            properties.insert("anonymous".into(), field);
+        }
+    }
+    if let Some(get) = doc.pointer_mut("/paths/~1api~1v1~1submissions/get") {
+        *get = json!({ "summary": "The public finished submissions, newest first, 50 a page (the page /submissions; the newest page as Atom at /submissions.atom)",
+                    "parameters": [{ "name": "page", "in": "query", "schema": { "type": "integer", "minimum": 1, "maximum": 100000 } }],
+                    "responses": { "200": { "description": "{page, per_page, more, newer, older (page numbers or null), feed, submissions: [{id, created_at, finished_at, method_id, method, dataset, task, owner (`anonymous` for a method under double-blind review), score: {board, name, value} or null}]}" }, "400": { "description": "a page that is no number from 1 to 100000" } } });
     }
     doc
 }

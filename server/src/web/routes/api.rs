@@ -22,9 +22,9 @@ use crate::service::{catalogue, downloads, methods, publishing};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
-use crate::web::routes::boards;
 use crate::web::routes::deadlines;
 use crate::web::routes::submissions::{field_text, multipart_error, read_upload};
+use crate::web::routes::{boards, recent};
 use crate::web::views;
 
 pub fn router(max_upload: u64) -> Router<AppState> {
@@ -32,9 +32,10 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/api/v1/datasets", get(datasets))
         .route("/api/v1/methods", get(methods))
         .route("/api/v1/methods/{id}", get(method).post(edit_method))
+        .route("/api/v1/methods/{id}/reveal", post(reveal_method))
         .route(
             "/api/v1/submissions",
-            get(recent_submissions).merge(
+            get(recent::json).merge(
                 post(create_submission)
                     .layer(DefaultBodyLimit::max(max_upload as usize + 64 * 1024))
                     .layer(from_fn(deadlines::by_progress)),
@@ -97,6 +98,16 @@ async fn edit_method(
     Ok(Json(json!({ "method": method })))
 }
 
+/// The end of a method's double-blind review: the owner is named again everywhere live.
+async fn reveal_method(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<MethodId>,
+) -> AppResult<Json<serde_json::Value>> {
+    let method = methods::reveal(&app, viewer.require_user()?, id).await?;
+    Ok(Json(json!({ "method": method })))
+}
+
 async fn pin(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -116,12 +127,6 @@ async fn unpin(
     methods::pin(&app, viewer.require_user()?, id, false).await?;
     Ok(Json(
         json!({ "ok": true, "submission": id, "pinned": false }),
-    ))
-}
-
-async fn recent_submissions(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
-    Ok(Json(
-        json!({ "submissions": catalogue::recent_submissions(&app, 100).await? }),
     ))
 }
 

@@ -43,6 +43,7 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/leaderboards/{protocol}", get(leaderboard))
         .route("/datasets", get(datasets))
         .route("/methods/{id}", get(method).post(edit_method))
+        .route("/methods/{id}/reveal", post(reveal_method))
         .route("/submissions/{id}", get(submission))
         .route("/submissions/{id}/pin", post(pin))
         .route("/submissions/{id}/unpin", post(unpin))
@@ -412,6 +413,17 @@ struct CsrfForm {
     csrf: String,
 }
 
+/// The method page's reveal button.
+async fn reveal_method(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<MethodId>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    methods::reveal(&app, viewer.check_csrf(&f.csrf)?, id).await?;
+    Ok(Redirect::to(&format!("/methods/{id}")).into_response())
+}
+
 async fn pin(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -537,6 +549,8 @@ struct SubmitPage {
     paper_url: String,
     code_url: String,
     hardware: String,
+    /// The "anonymous (double-blind review)" box was ticked.
+    anonymous: bool,
     max_upload_mb: u64,
     csrf: String,
 }
@@ -599,6 +613,7 @@ async fn submit(
         paper_url: fields.paper_url.clone(),
         code_url: fields.code_url.clone(),
         hardware: fields.hardware.clone(),
+        anonymous: fields.anonymous.trim() == "true",
         max_upload_mb: app.config.max_upload_mb,
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()

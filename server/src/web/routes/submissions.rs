@@ -13,7 +13,7 @@ use tokio::io::AsyncWriteExt;
 
 use crate::app::App;
 use crate::domain::{
-    Description, Hardware, Link, MethodName, Task, UploadTask, Visibility, optional,
+    Description, Hardware, Link, MethodName, Task, UploadTask, Visibility, flag, optional,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Protocols, Upload, UploadedFile};
@@ -37,6 +37,8 @@ pub struct Fields {
     pub training_data: String,
     pub modality: String,
     pub hardware: String,
+    /// `true`: the method is under double-blind review; empty leaves it as it is.
+    pub anonymous: String,
     pub visibility: String,
     /// The form's "publish when evaluated" box (sent only when ticked); the API reads
     /// `visibility` instead.
@@ -81,6 +83,10 @@ impl Fields {
             code_url: Link::parse("code_url", &self.code_url)?,
             training_data: optional(&self.training_data)?,
             modality: optional(&self.modality)?,
+            anonymous: match self.anonymous.trim() {
+                "" => None,
+                sent => Some(flag("anonymous", sent)?),
+            },
         };
         if files.is_empty() {
             return Err(AppError::BadRequest(
@@ -136,6 +142,7 @@ pub async fn read_upload(
             "training_data" => &mut fields.training_data,
             "modality" => &mut fields.modality,
             "hardware" => &mut fields.hardware,
+            "anonymous" => &mut fields.anonymous,
             "visibility" => &mut fields.visibility,
             "publish" => &mut fields.publish,
             "csrf" => &mut fields.csrf,
