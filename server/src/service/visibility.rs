@@ -1,12 +1,12 @@
 //! Who may see what, decided here and nowhere else. A public submission is everyone's; a
-//! private one is its owner's and the administrators', and to anyone else it answers as
-//! missing, exactly like one that does not exist (its existence is not told). A method is seen
-//! by everyone once one of its submissions is public, and always by its owner and the
-//! administrators. Every page, API route and picture asks these functions, so the page and the
+//! private one is its owner's and the administrators' (and, for a team's method, every
+//! member's), and to anyone else it answers as missing, exactly like one that does not exist
+//! (its existence is not told). A method is seen by everyone once one of its submissions is
+//! public, and always by its owner (its team's members) and the administrators. Every page, API route and picture asks these functions, so the page and the
 //! API of one thing can never disagree.
 
 use crate::app::App;
-use crate::domain::{MethodId, SubmissionId, UserId};
+use crate::domain::{MethodId, SubmissionId, TeamId, UserId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
@@ -18,6 +18,22 @@ pub fn sees_private(reader: Option<&User>, owner: Option<UserId>) -> bool {
     reader.is_some_and(|u| u.is_admin || Some(u.id) == owner)
 }
 
+/// [`sees_private`], or `reader` is a member of `team`, the team whose method it is.
+pub async fn sees_private_of(
+    app: &App,
+    reader: Option<&User>,
+    owner: Option<UserId>,
+    team: Option<TeamId>,
+) -> AppResult<bool> {
+    if sees_private(reader, owner) {
+        return Ok(true);
+    }
+    Ok(match (reader, team) {
+        (Some(u), Some(team)) => app.store.is_member(team, u.id).await?,
+        _ => false,
+    })
+}
+
 /// Submission `id` if `reader` may see it; otherwise missing.
 pub async fn submission(
     app: &App,
@@ -25,7 +41,9 @@ pub async fn submission(
     reader: Option<&User>,
 ) -> AppResult<SubmissionRow> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !submission.is_public() && !sees_private(reader, submission.owner_id) {
+    if !submission.is_public()
+        && !sees_private_of(app, reader, submission.owner_id, submission.team_id).await?
+    {
         return Err(AppError::NotFound);
     }
     Ok(submission)
@@ -40,7 +58,7 @@ pub async fn method(
     reader: Option<&User>,
 ) -> AppResult<(MethodRow, Vec<SubmissionRow>)> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
-    if sees_private(reader, method.owner_id) {
+    if sees_private_of(app, reader, method.owner_id, method.team_id).await? {
         let submissions = app.store.submissions_of_method(id).await?;
         return Ok((method, submissions));
     }

@@ -19,7 +19,7 @@ use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
 pub struct EntryHead {
     pub method_id: MethodId,
     pub method: String,
-    /// The name of the account the method belongs to.
+    /// The name of the team or account the method belongs to.
     pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
@@ -34,14 +34,15 @@ pub struct EntryHead {
 /// The columns [`head`] reads (all but `submission_id`, which each board's score table gives),
 /// for a query that joins `submissions s` with [`HEAD_JOINS`].
 pub(super) const HEAD_COLUMNS: &str = "s.method_id, m.name AS method, \
-     COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
+     COALESCE(t.name, u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
      s.dataset_id, d.name AS dataset, \
      CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
      THEN 1 ELSE 0 END AS BIGINT) AS pinned";
 
 /// The joins [`HEAD_COLUMNS`] reads from.
 pub(super) const HEAD_JOINS: &str = "JOIN methods m ON m.id = s.method_id \
-     JOIN datasets d ON d.id = s.dataset_id LEFT JOIN users u ON u.id = m.owner_id";
+     JOIN datasets d ON d.id = s.dataset_id LEFT JOIN users u ON u.id = m.owner_id \
+     LEFT JOIN teams t ON t.id = m.team_id";
 
 pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
     Ok(EntryHead {
