@@ -513,3 +513,102 @@ fn fair_use_counts_the_uploader(kind: Db) {
     assert_eq!(r.status(), 202);
 }
 both_databases!(fair_use_counts_the_uploader);
+
+/// The pages' forms: the account page creates a team, the team page invites, the invited
+/// account accepts on its account page, the creator removes with the member's button; a form
+/// without the session's CSRF token is refused.
+fn the_pages_forms(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let datasets = reference_datasets(dir.path());
+    let db = TestDb::new(kind, "team_forms");
+    let data = dir.path().join("data");
+    let server = start(&data, &datasets, &db, &[]);
+    let base = server.base.clone();
+    account(&data, &db, "alice");
+    account(&data, &db, "bob");
+    let alice = signed_in(&server, "alice");
+    let bob = signed_in(&server, "bob");
+    let page = |b: &reqwest::blocking::Client, path: &str| {
+        let r = b.get(format!("{base}{path}")).send().expect("page");
+        assert_eq!(r.status(), 200, "{path}");
+        r.text().expect("html")
+    };
+
+    let account_page = page(&alice, "/account");
+    assert!(
+        account_page.contains("action=\"/teams\""),
+        "the create form"
+    );
+    let forged = alice
+        .post(format!("{base}/teams"))
+        .form(&[("csrf", "forged"), ("name", "form-lab")])
+        .send()
+        .expect("forged");
+    assert_eq!(forged.status(), 403);
+    let created = alice
+        .post(format!("{base}/teams"))
+        .form(&[
+            ("csrf", csrf_of(&account_page).as_str()),
+            ("name", "form-lab"),
+        ])
+        .send()
+        .expect("create");
+    assert_eq!(created.status(), 200);
+    assert!(created.url().path().ends_with("/teams/form-lab"));
+    let team_page = created.text().expect("html");
+    assert!(team_page.contains("Team form-lab"), "{team_page}");
+    let invited = alice
+        .post(format!("{base}/teams/form-lab/invitations"))
+        .form(&[("csrf", csrf_of(&team_page).as_str()), ("user", "bob")])
+        .send()
+        .expect("invite");
+    assert_eq!(invited.status(), 200);
+    // Bob, not yet a member, is offered neither the invitation form nor removal.
+    let seen_by_bob = page(&bob, "/teams/form-lab");
+    assert!(!seen_by_bob.contains("/invitations\""), "{seen_by_bob}");
+    assert!(!seen_by_bob.contains("/remove\""), "{seen_by_bob}");
+    let bobs_account = page(&bob, "/account");
+    assert!(
+        bobs_account.contains("alice invites you to team"),
+        "{bobs_account}"
+    );
+    let accepted = bob
+        .post(format!("{base}/teams/form-lab/accept"))
+        .form(&[("csrf", csrf_of(&bobs_account).as_str())])
+        .send()
+        .expect("accept");
+    assert_eq!(accepted.status(), 200);
+    let seen_by_bob = page(&bob, "/teams/form-lab");
+    assert!(
+        seen_by_bob.contains("/teams/form-lab/invitations\""),
+        "a member invites"
+    );
+    assert!(
+        !seen_by_bob.contains("/remove\""),
+        "only the creator removes"
+    );
+
+    let seen_by_alice = page(&alice, "/teams/form-lab");
+    let remove = "/teams/form-lab/members/bob/remove";
+    assert!(seen_by_alice.contains(remove), "{seen_by_alice}");
+    let removed = alice
+        .post(format!("{base}{remove}"))
+        .form(&[("csrf", csrf_of(&seen_by_alice).as_str())])
+        .send()
+        .expect("remove");
+    assert_eq!(removed.status(), 200);
+    let rows = column(
+        &db,
+        &data,
+        "SELECT u.name || '|' || a.action || '|' || a.target FROM audit_log a \
+         JOIN users u ON u.id = a.actor_id ORDER BY a.id",
+    );
+    assert_eq!(rows, ["alice|remove team member|team form-lab: bob"]);
+    let refused = bob
+        .post(format!("{base}/teams/form-lab/leave"))
+        .form(&[("csrf", csrf_of(&bobs_account).as_str())])
+        .send()
+        .expect("leave");
+    assert_eq!(refused.status(), 404, "not a member any more");
+}
+both_databases!(the_pages_forms);
