@@ -86,9 +86,9 @@ pub fn pin_refusal(s: &SubmissionRow) -> Option<String> {
 }
 
 /// Pins a submission as its method's entry on its dataset (for every protocol), or unpins it:
-/// the best public finished submission is the entry again. Whoever may change the method may
-/// (any member of a team's, whoever uploaded the submission). Pinning one that cannot be an
-/// entry is refused (409) with the reason; unpinning always may.
+/// the best public finished submission is the entry again, by whoever may change the method
+/// (its owner, any member of a team's method's team, an administrator). Pinning one that
+/// cannot be an entry is refused (409) with the reason; unpinning always may.
 pub async fn pin(
     app: &App,
     user: &User,
