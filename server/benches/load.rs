@@ -483,6 +483,7 @@ async fn populate(
         let sha = format!("{i:064x}");
         let new = NewSubmission {
             owner_id: owner,
+            team_id: None,
             method: &method,
             meta: &meta,
             dataset_id: ds.id,

@@ -4,7 +4,7 @@
 
 mod ids;
 
-pub use ids::{DatasetId, MethodId, SnapshotId, SubmissionId, UserId};
+pub use ids::{DatasetId, MethodId, SnapshotId, SubmissionId, TeamId, UserId};
 
 use std::fmt;
 use std::str::FromStr;
@@ -28,6 +28,11 @@ impl FieldError {
     /// The problem as a sentence about the field ("the name must have ..."), for forms.
     pub fn problem_sentence(&self) -> String {
         format!("the {} {}", self.field.replace('_', " "), self.problem)
+    }
+
+    /// The same problem of a value sent in another field (an account's name sent as `user`).
+    pub fn named(self, field: &'static str) -> FieldError {
+        FieldError { field, ..self }
     }
 
     fn new(field: &'static str, problem: impl Into<String>) -> Self {
@@ -97,6 +102,11 @@ text_newtype!(
     UserName
 );
 text_newtype!(
+    /// The name of a team: 1 to 40 letters, digits, `-`, `_` or `.`, as an account's (it is
+    /// shown as the owner of the team's methods and appears in URLs).
+    TeamName
+);
+text_newtype!(
     /// The label of an API token, so its owner can tell tokens apart: 1 to 100 characters.
     TokenLabel
 );
@@ -144,6 +154,15 @@ impl UserName {
             ));
         }
         Ok(UserName(name))
+    }
+}
+
+impl TeamName {
+    /// The name given in `field` (`name` when a team is created, `team` with an upload).
+    pub fn parse(field: &'static str, value: &str) -> Result<Self, FieldError> {
+        UserName::parse(value)
+            .map(|n| TeamName(n.0))
+            .map_err(|e| e.named(field))
     }
 }
 

@@ -1,5 +1,5 @@
-//! The use cases: what a user, an administrator or the command line can do (accounts, methods,
-//! submissions, publishing, moderation, re-scoring, snapshots), what each page reads (the
+//! The use cases: what a user, an administrator or the command line can do (accounts, teams,
+//! methods, submissions, publishing, moderation, re-scoring, snapshots), what each page reads (the
 //! leaderboards and their ranking, a submission's details, the inspection of its targets, the
 //! public lists, an owner's downloads), each a function over the store that checks the rules of
 //! the benchmark. Handlers, the worker and the command line call these; this layer knows nothing
@@ -20,4 +20,5 @@ pub mod rescoring;
 pub mod snapshots;
 pub mod submission_details;
 pub mod submissions;
+pub mod teams;
 pub mod visibility;

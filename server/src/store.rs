@@ -35,6 +35,7 @@ pub mod rescoring;
 pub mod scores;
 pub mod snapshots;
 pub mod submissions;
+pub mod teams;
 pub mod worker_beats;
 
 static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../migrations/sqlite");

@@ -23,7 +23,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::cli::eval::{Scale, bop24_table, load_results, print_scores_as};
-use crate::domain::Visibility;
+use crate::domain::{TeamName, Visibility};
 use crate::preflight::RedFlag;
 use crate::service::submissions::file_dataset;
 
@@ -65,6 +65,10 @@ pub struct SubmitArgs {
     /// The method the results are of (created on the server at its first submission).
     #[arg(long)]
     pub method: String,
+    /// Submit to this team's method of that name (created as the team's if new): for the
+    /// team's members; the boards name the team as the owner.
+    #[arg(long, value_parser = team_name)]
+    pub team: Option<TeamName>,
     /// The dataset the results are for, as the server names it (default: the one the file's
     /// name `METHOD_DATASET-SPLIT.csv` says, as the server reads it).
     #[arg(long)]
@@ -94,6 +98,11 @@ pub struct SubmitArgs {
     /// says what the text says after the scores).
     #[arg(long)]
     pub json: bool,
+}
+
+/// `--team` as the server reads it, so a name no team can have fails before the upload.
+fn team_name(value: &str) -> std::result::Result<TeamName, String> {
+    TeamName::parse("team", value).map_err(|e| e.to_string())
 }
 
 /// How often the submission is looked at while it waits or runs.
@@ -213,6 +222,9 @@ impl Outcome {
                     args.file.display(),
                     args.method
                 );
+                if let Some(team) = &args.team {
+                    again.push_str(&format!(" --team {team}"));
+                }
                 if args.dataset.is_some() {
                     again.push_str(&format!(" --dataset {dataset}"));
                 }
@@ -347,6 +359,9 @@ fn send_file(client: &Client, server: &str, args: &SubmitArgs, dataset: &str) ->
         );
     if let Some(p) = args.protocol {
         form = form.text("protocol", p.as_str());
+    }
+    if let Some(team) = &args.team {
+        form = form.text("team", team.to_string());
     }
     // Sent only when asked for: without it the server keeps its own default, and a file
     // submitted again keeps the visibility it has.

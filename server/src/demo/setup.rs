@@ -88,6 +88,7 @@ pub async fn ensure_demo_submissions(app: &App) -> anyhow::Result<()> {
             .unwrap_or_default();
         let upload = Upload {
             method: MethodName::parse(&demo.method)?,
+            team: None,
             dataset: Some(row.name.clone()),
             protocols: Protocols::asked(&[]),
             task,

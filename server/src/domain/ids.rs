@@ -70,6 +70,10 @@ id_type!(
     /// A snapshot of the leaderboards, taken to be cited.
     SnapshotId
 );
+id_type!(
+    /// A team: accounts that submit methods together.
+    TeamId
+);
 
 #[cfg(test)]
 mod tests {

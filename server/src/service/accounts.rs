@@ -16,6 +16,7 @@ use crate::domain::{Password, TokenLabel, UserId, UserName, normalized};
 use crate::error::{AppError, AppResult};
 use crate::service::visibility;
 use crate::store::accounts::{Counter, Session, TokenRow, User};
+use crate::store::teams::{InvitationRow, TeamRow};
 use crate::store::{Store, StoreError};
 
 /// Personal tokens carry a prefix so that leaked ones are easy to recognise.
@@ -370,9 +371,23 @@ pub async fn token_user(app: &App, token: &str) -> AppResult<User> {
         .ok_or_else(|| AppError::Unauthorized("invalid or revoked token".into()))
 }
 
-/// The personal API tokens of `user`, newest first.
-pub async fn tokens(app: &App, user: &User) -> AppResult<Vec<TokenRow>> {
-    Ok(app.store.tokens(user.id).await?)
+/// What an account's page shows its owner.
+pub struct AccountHome {
+    /// Its personal API tokens, newest first.
+    pub tokens: Vec<TokenRow>,
+    /// The teams it is a member of, by name.
+    pub teams: Vec<TeamRow>,
+    /// The invitations to teams waiting for it to accept them, oldest first.
+    pub invitations: Vec<InvitationRow>,
+}
+
+/// The account page of `user`.
+pub async fn home(app: &App, user: &User) -> AppResult<AccountHome> {
+    Ok(AccountHome {
+        tokens: app.store.tokens(user.id).await?,
+        teams: app.store.teams_of(user.id).await?,
+        invitations: app.store.invitations_of(user.id).await?,
+    })
 }
 
 /// `user` mints a token on their account page (see [`create_token`]).

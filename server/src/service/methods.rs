@@ -1,11 +1,12 @@
 //! A method's home, and what its owner does with it. Its page (and JSON twin) gathers where
 //! the method stands on every board and its submissions over time, as [`visibility`] lets the
-//! reader see them. The owner (or an administrator) states its details and chooses which
-//! submission is its entry on a dataset; anyone else who can see the method is refused (403),
-//! and a method or submission they cannot see answers as missing.
+//! reader see them. The owner (any member of a team's method's team, or an administrator)
+//! states its details and chooses which submission is its entry on a dataset; anyone else who
+//! can see the method is refused (403), and a method or submission they cannot see answers as
+//! missing.
 
 use crate::app::App;
-use crate::domain::{MethodForm, MethodId, SubmissionId, UserId};
+use crate::domain::{MethodForm, MethodId, SubmissionId};
 use crate::error::{AppError, AppResult};
 use crate::service::leaderboard::{self, Standing};
 use crate::service::submission_details::{self, Owned};
@@ -21,31 +22,45 @@ pub struct MethodHome {
     pub standings: Vec<Standing>,
     /// Its submissions the reader may see, newest first, with their headline scores.
     pub submissions: Vec<Owned>,
+    /// The reader may change it (see [`may_change`]).
+    pub may_edit: bool,
 }
 
 /// Method `id` as `reader` may see it (see [`visibility::method`]): to its owner even before
 /// anything of it is public.
 pub async fn home(app: &App, id: MethodId, reader: Option<&User>) -> AppResult<MethodHome> {
     let (method, rows) = visibility::method(app, id, reader).await?;
+    let may_edit = match reader {
+        Some(user) => may_change(app, user, &method).await?,
+        None => false,
+    };
     Ok(MethodHome {
+        may_edit,
         standings: leaderboard::standings(app, id).await?,
         submissions: submission_details::of_method(app, id, rows).await?,
         method,
     })
 }
 
-fn may_change(user: &User, owner: Option<UserId>) -> bool {
-    user.is_admin || owner == Some(user.id)
+/// Whether `user` may change `method`: its owner, any member of its team, or an administrator.
+async fn may_change(app: &App, user: &User, method: &MethodRow) -> AppResult<bool> {
+    visibility::sees_private_of(app, Some(user), method.owner_id, method.team_id).await
 }
 
 /// Method `id` if `user` may change it; a method they can see but not change is refused
 /// (403, naming no one), one they cannot see is missing.
 async fn changeable(app: &App, user: &User, id: MethodId) -> AppResult<MethodRow> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
-    if !may_change(user, method.owner_id) {
+    if !may_change(app, user, &method).await? {
         let public = !app.store.public_submissions_of_method(id).await?.is_empty();
         return Err(if public {
-            AppError::Forbidden("only the method's owner may change it".into())
+            // An anonymous method's team is not told: that would name who is behind it.
+            AppError::Forbidden(match &method.team {
+                Some(team) if !method.anonymous => {
+                    format!("only the members of team `{team}` may change it")
+                }
+                _ => "only the method's owner may change it".into(),
+            })
         } else {
             AppError::NotFound
         });
@@ -90,8 +105,9 @@ pub fn pin_refusal(s: &SubmissionRow) -> Option<String> {
 }
 
 /// Pins a submission as its method's entry on its dataset (for every protocol), or unpins it:
-/// the best public finished submission is the entry again. Pinning one that cannot be an entry
-/// is refused (409) with the reason; unpinning always may.
+/// the best public finished submission is the entry again, by whoever may change the method
+/// (its owner, any member of a team's method's team, an administrator). Pinning one that
+/// cannot be an entry is refused (409) with the reason; unpinning always may.
 pub async fn pin(
     app: &App,
     user: &User,
@@ -103,7 +119,12 @@ pub async fn pin(
         .submission(submission_id)
         .await?
         .ok_or(AppError::NotFound)?;
-    if !may_change(user, submission.owner_id) {
+    let method = app
+        .store
+        .method(submission.method_id)
+        .await?
+        .ok_or(AppError::NotFound)?;
+    if !may_change(app, user, &method).await? {
         return Err(if submission.is_public() {
             AppError::Forbidden("only the method's owner may choose its entry".into())
         } else {

@@ -11,6 +11,11 @@
 //! Callers hand over values already parsed at their edge (`MethodName`,
 //! `Visibility`, ...). A refused upload leaves no row behind.
 //!
+//! An upload with a `team` is for that team's method of the given name (created as the team's
+//! if new), for the team's members only: anyone else is told the team is not one of theirs
+//! (404), before a file is looked at. Each submission stays its uploader's, so the fair-use
+//! limit counts the uploader's submissions whatever method they are for.
+//!
 //! A `.json` file (or any file when a 2D task is asked for) is a BOP'22 2D result file: parsed
 //! with the evaluator's COCO parser (each problem naming its entry and key), its task the one
 //! asked for or read from its content, and pre-flighted against the dataset's target images.
@@ -36,11 +41,13 @@ use crate::clock::now_ms;
 use crate::datasets;
 use crate::datasets::config::BOP24_TARGETS;
 use crate::datasets::uploaded_file;
-use crate::domain::{CocoProtocol, DatasetId, Hardware, MethodName, Task, Visibility};
+use crate::domain::{
+    CocoProtocol, DatasetId, Hardware, MethodName, Task, TeamId, TeamName, Visibility,
+};
 use crate::error::{AppError, AppResult, LineProblem};
 use crate::preflight::Preflight;
 use crate::service::datasets::served;
-use crate::service::publishing;
+use crate::service::{publishing, teams};
 use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
 use crate::store::submissions::{CreatedAll, CreatedOne, FairUse, NewSubmission, SubmissionRow};
@@ -134,6 +141,8 @@ impl Protocols {
 #[derive(Debug)]
 pub struct Upload {
     pub method: MethodName,
+    /// The team whose method `method` is; `None`: the uploader's own.
+    pub team: Option<TeamName>,
     /// The name of a served dataset; `None`: each file's name says it.
     pub dataset: Option<String>,
     /// The protocols to evaluate a 6D (CSV) file under, and those the uploader chose (see
@@ -224,6 +233,7 @@ pub async fn submit_under(
 ) -> AppResult<Vec<Accepted>> {
     let Upload {
         method,
+        team,
         dataset,
         protocols,
         task,
@@ -237,6 +247,10 @@ pub async fn submit_under(
             "field `file` (the result file) is required".into(),
         ));
     }
+    let team = match &team {
+        Some(name) => Some(teams::member_team(app, owner, name).await?.id),
+        None => None,
+    };
     let files = unpack_archives(app, files).await?;
     let several = files.len() > 1;
     let total = files.len();
@@ -287,6 +301,7 @@ pub async fn submit_under(
         owner,
         &Described {
             method: &method,
+            team,
             meta: &meta,
             protocols: &protocols.scored,
             visibility,
@@ -566,6 +581,7 @@ fn entry_problems(file_name: &str, problems: &coco::problems::EntryProblems) -> 
 /// What every file of one upload shares.
 struct Described<'a> {
     method: &'a MethodName,
+    team: Option<TeamId>,
     meta: &'a MethodMeta,
     protocols: &'a [ProtocolName],
     visibility: Option<Visibility>,
@@ -585,6 +601,7 @@ async fn store_all(
 ) -> AppResult<Vec<Accepted>> {
     let Described {
         method,
+        team,
         meta,
         protocols,
         visibility,
@@ -640,6 +657,7 @@ async fn store_all(
                 publishing::initial(visibility.unwrap_or(Visibility::Private), &k.preflight);
             NewSubmission {
                 owner_id: owner.id,
+                team_id: team,
                 method,
                 meta,
                 dataset_id: k.dataset_id,
@@ -686,9 +704,11 @@ async fn store_all(
             .ok_or_else(|| AppError::Internal("the new submission vanished".into()))?;
         let preflight = if duplicate {
             // Re-sending a file with another visibility is how its owner publishes or
-            // withdraws it (the duplicate is of the uploader's own method, so theirs): nothing
-            // is lost and what they asked for holds, red flags holding publication back.
-            if let Some(asked) = visibility.filter(|v| *v != submission.visibility) {
+            // withdraws it: nothing is lost and what they asked for holds, red flags holding
+            // publication back. On a team's method the duplicate may be another member's
+            // upload, whose publication stays theirs to decide.
+            let own = submission.owner_id == Some(owner.id);
+            if let Some(asked) = visibility.filter(|v| own && *v != submission.visibility) {
                 match publishing::initial(asked, &submission.preflight) {
                     (_, true) => {
                         app.store.hold_publication(id).await?;

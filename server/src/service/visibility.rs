@@ -1,9 +1,10 @@
 //! Who may see what, decided here and nowhere else. A public submission is everyone's; a
-//! private one is its owner's and the administrators', and to anyone else it answers as
-//! missing, exactly like one that does not exist (its existence is not told). A method is seen
-//! by everyone once one of its submissions is public, and always by its owner and the
-//! administrators. Every page, API route and picture asks these functions, so the page and the
-//! API of one thing can never disagree.
+//! private one is its owner's and the administrators' (and, for a team's method, every
+//! member's), and to anyone else it answers as missing, exactly like one that does not exist
+//! (its existence is not told). A method is seen by everyone once one of its submissions is
+//! public, and always by its owner (its team's members) and the administrators. Every page, API
+//! route and picture asks these functions, so the page and the API of one thing can never
+//! disagree.
 //!
 //! Who is behind a method is decided here too: a method under double-blind review (anonymous)
 //! is named "anonymous" to everyone but its owner and the administrators, without authors,
@@ -11,7 +12,7 @@
 //! exports and snapshots, the recent list and its feed) is the public's view.
 
 use crate::app::App;
-use crate::domain::{MethodId, SubmissionId, UserId};
+use crate::domain::{MethodId, SubmissionId, TeamId, UserId};
 use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::methods::MethodRow;
@@ -38,6 +39,7 @@ pub fn discloses(reader: Option<&User>, owner: Option<UserId>, anonymous: bool) 
 pub fn method_as_seen(mut method: MethodRow, reader: Option<&User>) -> MethodRow {
     if !discloses(reader, method.owner_id, method.anonymous) {
         method.owner = ANONYMOUS.to_string();
+        method.team = None;
         method.authors.clear();
         method.paper_url.clear();
         method.code_url.clear();
@@ -54,6 +56,22 @@ pub fn public_owner(owner: String, anonymous: bool) -> String {
     }
 }
 
+/// [`sees_private`], or `reader` is a member of `team`, the team whose method it is.
+pub async fn sees_private_of(
+    app: &App,
+    reader: Option<&User>,
+    owner: Option<UserId>,
+    team: Option<TeamId>,
+) -> AppResult<bool> {
+    if sees_private(reader, owner) {
+        return Ok(true);
+    }
+    Ok(match (reader, team) {
+        (Some(u), Some(team)) => app.store.is_member(team, u.id).await?,
+        _ => false,
+    })
+}
+
 /// Submission `id` if `reader` may see it; otherwise missing.
 pub async fn submission(
     app: &App,
@@ -61,7 +79,9 @@ pub async fn submission(
     reader: Option<&User>,
 ) -> AppResult<SubmissionRow> {
     let submission = app.store.submission(id).await?.ok_or(AppError::NotFound)?;
-    if !submission.is_public() && !sees_private(reader, submission.owner_id) {
+    if !submission.is_public()
+        && !sees_private_of(app, reader, submission.owner_id, submission.team_id).await?
+    {
         return Err(AppError::NotFound);
     }
     Ok(submission)
@@ -76,7 +96,7 @@ pub async fn method(
     reader: Option<&User>,
 ) -> AppResult<(MethodRow, Vec<SubmissionRow>)> {
     let method = app.store.method(id).await?.ok_or(AppError::NotFound)?;
-    if sees_private(reader, method.owner_id) {
+    if sees_private_of(app, reader, method.owner_id, method.team_id).await? {
         let submissions = app.store.submissions_of_method(id).await?;
         return Ok((method, submissions));
     }
@@ -108,6 +128,8 @@ mod tests {
             name: "blind".into(),
             owner: "user1".into(),
             owner_id: Some(owner.id),
+            team: None,
+            team_id: None,
             description: "how it works".into(),
             authors: "A. Author".into(),
             year: Some(2026),
@@ -132,6 +154,12 @@ mod tests {
             assert!(seen.authors.is_empty() && seen.paper_url.is_empty());
             assert!(seen.code_url.is_empty());
             assert_eq!(seen.description, "how it works");
+            // Nor the team behind it.
+            let team = MethodRow {
+                team: Some("zq_team".into()),
+                ..method.clone()
+            };
+            assert_eq!(method_as_seen(team, reader).team, None);
         }
         assert_eq!(public_owner("user1".into(), true), ANONYMOUS);
         method.anonymous = false;

@@ -1,4 +1,5 @@
-//! The audit log: who did what, and when, for every administrator action.
+//! The audit log: who did what, and when, for every administrator action, and for every member
+//! leaving a team or removed from it (which changes who may act on the team's methods).
 
 use std::fmt;
 use std::str::FromStr;
@@ -10,7 +11,8 @@ use super::{Store, StoreResult, parse_column};
 use crate::clock::now_ms;
 use crate::domain::UserId;
 
-/// What an administrator can do; stored as its name.
+/// What an administrator can do, and a team's member leaving or being removed; stored as its
+/// name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum AdminAction {
     #[serde(rename = "hide")]
@@ -31,6 +33,10 @@ pub enum AdminAction {
     NotCoreDataset,
     #[serde(rename = "snapshot")]
     Snapshot,
+    #[serde(rename = "leave team")]
+    LeaveTeam,
+    #[serde(rename = "remove team member")]
+    RemoveTeamMember,
 }
 
 impl AdminAction {
@@ -45,6 +51,8 @@ impl AdminAction {
             AdminAction::CoreDataset => "core dataset",
             AdminAction::NotCoreDataset => "not core dataset",
             AdminAction::Snapshot => "snapshot",
+            AdminAction::LeaveTeam => "leave team",
+            AdminAction::RemoveTeamMember => "remove team member",
         }
     }
 }
@@ -62,6 +70,8 @@ impl FromStr for AdminAction {
             AdminAction::CoreDataset,
             AdminAction::NotCoreDataset,
             AdminAction::Snapshot,
+            AdminAction::LeaveTeam,
+            AdminAction::RemoveTeamMember,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

@@ -19,8 +19,8 @@ use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
 pub struct EntryHead {
     pub method_id: MethodId,
     pub method: String,
-    /// The name of the account the method belongs to (whether the public is told it is the
-    /// service's rule, by `anonymous`).
+    /// The name of the team or account the method belongs to (whether the public is told it
+    /// is the service's rule, by `anonymous`).
     pub owner: String,
     /// The method is under double-blind review.
     pub anonymous: bool,
@@ -37,14 +37,16 @@ pub struct EntryHead {
 /// The columns [`head`] reads (all but `submission_id`, which each board's score table gives),
 /// for a query that joins `submissions s` with [`HEAD_JOINS`].
 pub(super) const HEAD_COLUMNS: &str = "s.method_id, m.name AS method, \
-     COALESCE(u.name, '') AS owner, m.anonymous, m.training_data, m.modality, m.hardware, \
+     COALESCE(t.name, u.name, '') AS owner, m.anonymous, m.training_data, m.modality, \
+     m.hardware, \
      s.dataset_id, d.name AS dataset, \
      CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
      THEN 1 ELSE 0 END AS BIGINT) AS pinned";
 
 /// The joins [`HEAD_COLUMNS`] reads from.
 pub(super) const HEAD_JOINS: &str = "JOIN methods m ON m.id = s.method_id \
-     JOIN datasets d ON d.id = s.dataset_id LEFT JOIN users u ON u.id = m.owner_id";
+     JOIN datasets d ON d.id = s.dataset_id LEFT JOIN users u ON u.id = m.owner_id \
+     LEFT JOIN teams t ON t.id = m.team_id";
 
 pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
     Ok(EntryHead {

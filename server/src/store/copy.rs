@@ -18,6 +18,9 @@ use super::{Backend, Store, StoreError, StoreResult};
 /// Every table of the schema, parents before children (foreign keys are checked as rows go in).
 pub(super) const TABLES: &[&str] = &[
     "users",
+    "teams",
+    "team_members",
+    "team_invitations",
     "datasets",
     "methods",
     "submissions",

@@ -6,8 +6,8 @@ use sqlx::any::AnyRow;
 
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{
-    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, TrainingData,
-    UserId,
+    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, TeamId,
+    TrainingData, UserId,
 };
 
 /// A method as the BOP site shows it: who submits it and how it works.
@@ -15,10 +15,16 @@ use crate::domain::{
 pub struct MethodRow {
     pub id: MethodId,
     pub name: String,
-    /// The name of the account it belongs to (empty for a method from before accounts).
+    /// The name of the team or account it belongs to (empty for a method from before
+    /// accounts).
     pub owner: String,
+    /// The account it belongs to; none for a team's method, which belongs to no one member.
     #[serde(skip)]
     pub owner_id: Option<UserId>,
+    /// The team it belongs to, if it is a team's: every member submits to it and edits it.
+    pub team: Option<String>,
+    #[serde(skip)]
+    pub team_id: Option<TeamId>,
     pub description: String,
     pub authors: String,
     pub year: Option<i64>,
@@ -87,9 +93,10 @@ pub(crate) fn optional_column<T: std::str::FromStr>(
     }
 }
 
-/// Selects a method with its owner's name.
-const SELECT_METHOD: &str = "SELECT m.*, COALESCE(u.name, '') AS owner FROM methods m \
-     LEFT JOIN users u ON u.id = m.owner_id";
+/// Selects a method with its owner's name: its team's, or its account's.
+pub(super) const SELECT_METHOD: &str = "SELECT m.*, COALESCE(t.name, u.name, '') AS owner, \
+     t.name AS team FROM methods m LEFT JOIN users u ON u.id = m.owner_id \
+     LEFT JOIN teams t ON t.id = m.team_id";
 
 pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
     Ok(MethodRow {
@@ -97,6 +104,8 @@ pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
         name: row.try_get("name")?,
         owner: row.try_get("owner")?,
         owner_id: row.try_get("owner_id")?,
+        team: row.try_get("team")?,
+        team_id: row.try_get("team_id")?,
         description: row.try_get("description")?,
         authors: row.try_get("authors")?,
         year: row.try_get("year")?,

@@ -18,7 +18,7 @@ use super::methods::MethodMeta;
 use super::{Backend, Store, StoreError, StoreResult, fetch_in, parse_column};
 use crate::clock::now_ms;
 use crate::domain::{
-    DatasetId, Hardware, MethodId, MethodName, SubmissionId, Task, UserId, Visibility,
+    DatasetId, Hardware, MethodId, MethodName, SubmissionId, Task, TeamId, UserId, Visibility,
 };
 use crate::preflight::{Preflight, RedFlag};
 
@@ -120,8 +120,12 @@ pub struct SubmissionRow {
     pub evaluator_version: Option<String>,
     /// The hardware the reported times come from.
     pub hardware: String,
+    /// The uploader.
     #[serde(skip)]
     pub owner_id: Option<UserId>,
+    /// The team whose method it is for, if any: its members see it as its uploader does.
+    #[serde(skip)]
+    pub team_id: Option<TeamId>,
     /// Hidden by an administrator: shown to its owner and the administrators only.
     pub hidden: bool,
     /// Its owner asked for publication, but the pre-flight's red flags hold it back until
@@ -152,7 +156,7 @@ impl SubmissionRow {
 #[derive(Clone, Debug)]
 pub struct RecentRow {
     pub submission: SubmissionRow,
-    /// The name of the account its method belongs to.
+    /// The name of the team or account its method belongs to.
     pub owner: String,
     /// Its method is under double-blind review.
     pub anonymous: bool,
@@ -165,7 +169,11 @@ pub struct RecentRow {
 
 /// A submission to create, with the method it is for.
 pub struct NewSubmission<'a> {
+    /// The uploader, whose fair-use limit it counts against.
     pub owner_id: UserId,
+    /// The team whose method `method` names (created as the team's if new); `None`: the
+    /// uploader's own method.
+    pub team_id: Option<TeamId>,
     pub method: &'a MethodName,
     pub meta: &'a MethodMeta,
     pub dataset_id: DatasetId,
@@ -284,7 +292,7 @@ pub(crate) const SUBMISSION_COLUMNS: &str = "s.id, s.method_id, m.name AS method
     d.name AS dataset, s.protocols, s.public, s.file_name, s.file_sha256, s.file_size, \
     s.estimates_count, s.status, s.progress, s.error, s.fault, s.attempts, s.created_at, \
     s.started_at, s.finished_at, s.evaluator_version, s.hardware, s.owner_id, s.hidden, \
-    s.held, s.work, s.work_done, s.eval_ms, s.preflight_json \
+    s.held, s.work, s.work_done, s.eval_ms, s.preflight_json, m.team_id \
     FROM submissions s JOIN methods m ON m.id = s.method_id JOIN datasets d ON d.id = s.dataset_id";
 
 pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
@@ -325,6 +333,7 @@ pub(crate) fn submission(row: &AnyRow) -> StoreResult<SubmissionRow> {
         evaluator_version: row.try_get("evaluator_version")?,
         hardware: row.try_get("hardware")?,
         owner_id: row.try_get("owner_id")?,
+        team_id: row.try_get("team_id")?,
         hidden: row.try_get::<i64, _>("hidden")? != 0,
         held: row.try_get::<i64, _>("held")? != 0,
         work: row.try_get("work")?,
@@ -382,8 +391,9 @@ impl Store {
     /// met at the fourth file must not leave the first three behind. For each, in order: the
     /// duplicate check (a re-upload of the same file answers with the existing submission,
     /// whatever the limit), then the fair-use count, then the inserts. Parallel calls for one
-    /// user are serialised (SQLite: the write lock; PostgreSQL: the user's row), so the count
-    /// is exact.
+    /// user are serialised (SQLite: the write lock; PostgreSQL: the user's row, and the team's
+    /// row for a team's method, so two members creating it at once make one), so the count is
+    /// exact.
     pub async fn create_submissions(
         &self,
         news: &[NewSubmission<'_>],
@@ -397,6 +407,15 @@ impl Store {
             for owner in owners {
                 sqlx::query("SELECT id FROM users WHERE id = $1 FOR UPDATE")
                     .bind(owner)
+                    .fetch_optional(&mut *tx)
+                    .await?;
+            }
+            let mut teams: Vec<TeamId> = news.iter().filter_map(|n| n.team_id).collect();
+            teams.sort_unstable();
+            teams.dedup();
+            for team in teams {
+                sqlx::query("SELECT id FROM teams WHERE id = $1 FOR UPDATE")
+                    .bind(team)
                     .fetch_optional(&mut *tx)
                     .await?;
             }
@@ -469,7 +488,7 @@ impl Store {
         offset: i64,
     ) -> StoreResult<Vec<RecentRow>> {
         let sql = format!(
-            "SELECT COALESCE(u.name, '') AS owner, m.anonymous, \
+            "SELECT COALESCE(t.name, u.name, '') AS owner, m.anonymous, \
              (SELECT sc.score FROM scores sc WHERE sc.submission_id = s.id \
              AND sc.protocol = 'bop19') AS bop19, \
              (SELECT sc.score FROM scores sc WHERE sc.submission_id = s.id \
@@ -477,6 +496,7 @@ impl Store {
              (SELECT c.ap FROM coco_scores c WHERE c.submission_id = s.id) AS ap, \
              (SELECT b.map FROM bop24_scores b WHERE b.submission_id = s.id) AS map, \
              {SUBMISSION_COLUMNS} LEFT JOIN users u ON u.id = m.owner_id \
+             LEFT JOIN teams t ON t.id = m.team_id \
              WHERE s.public = 1 AND s.hidden = 0 AND s.status = 'done' \
              ORDER BY s.id DESC LIMIT $1 OFFSET $2"
         );
@@ -758,14 +778,24 @@ async fn create_one(
     new: &NewSubmission<'_>,
     fair_use: Option<FairUse>,
 ) -> StoreResult<One> {
-    let method_id: Option<MethodId> =
-        sqlx::query("SELECT id FROM methods WHERE owner_id = $1 AND name = $2")
-            .bind(new.owner_id)
-            .bind(new.method.as_str())
-            .fetch_optional(&mut **tx)
-            .await?
-            .map(|r| r.try_get("id"))
-            .transpose()?;
+    // A team's method has no owner account, so an account's own methods never include one.
+    let (find, whose) = match new.team_id {
+        Some(team) => (
+            "SELECT id FROM methods WHERE team_id = $1 AND name = $2",
+            team.get(),
+        ),
+        None => (
+            "SELECT id FROM methods WHERE owner_id = $1 AND name = $2",
+            new.owner_id.get(),
+        ),
+    };
+    let method_id: Option<MethodId> = sqlx::query(find)
+        .bind(whose)
+        .bind(new.method.as_str())
+        .fetch_optional(&mut **tx)
+        .await?
+        .map(|r| r.try_get("id"))
+        .transpose()?;
     if let Some(method_id) = method_id {
         let same = sqlx::query(
             "SELECT id FROM submissions WHERE method_id = $1 AND dataset_id = $2 \
@@ -807,8 +837,8 @@ async fn create_one(
         }
         None => sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-             modality, created_at, owner_id, hardware, anonymous) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) RETURNING id",
+             modality, created_at, owner_id, hardware, anonymous, team_id) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) RETURNING id",
         )
         .bind(new.method.as_str())
         .bind(new.meta.description.as_str())
@@ -817,9 +847,10 @@ async fn create_one(
         .bind(new.meta.training_data.map_or("", |t| t.as_str()))
         .bind(new.meta.modality.map_or("", |m| m.as_str()))
         .bind(now)
-        .bind(new.owner_id)
+        .bind(new.team_id.is_none().then_some(new.owner_id))
         .bind(new.hardware.as_str())
         .bind(i64::from(new.meta.anonymous == Some(true)))
+        .bind(new.team_id)
         .fetch_one(&mut **tx)
         .await?
         .try_get("id")?,

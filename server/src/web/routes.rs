@@ -15,6 +15,7 @@ pub mod rescoring;
 pub mod snapshots;
 pub mod submissions;
 pub mod targets;
+pub mod teams;
 pub mod unavailable;
 
 use axum::Router;
@@ -66,6 +67,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(exports::router())
         .merge(rescoring::page_router())
         .merge(recent::page_router())
+        .merge(teams::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
@@ -73,6 +75,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(snapshots::api_router())
         .merge(targets::api_router())
         .merge(rescoring::api_router())
+        .merge(teams::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

@@ -55,6 +55,7 @@ mod store;
 mod submit_cli;
 mod submit_form;
 mod target_png;
+mod teams;
 mod trust;
 mod unicode_names;
 mod uploads;

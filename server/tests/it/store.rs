@@ -9,8 +9,8 @@ use crate::common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
-    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, Task, TokenLabel,
-    UserId, UserName, Visibility,
+    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, Task, TeamName,
+    TokenLabel, UserId, UserName, Visibility,
 };
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
@@ -113,6 +113,7 @@ fn new_submission<'a>(
 ) -> NewSubmission<'a> {
     NewSubmission {
         owner_id,
+        team_id: None,
         method: &f.method,
         meta: &f.meta,
         dataset_id,
@@ -1005,3 +1006,116 @@ fn board_version_follows_board_changes(kind: Db) {
     });
 }
 both_databases!(board_version_follows_board_changes);
+
+/// Teams: a unique name, the creator as first member, invitations used up by accepting, and
+/// methods of the team's own that every member's upload reaches (each submission staying its
+/// uploader's), apart from the members' personal methods of the same name.
+fn teams_and_their_methods(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let db = TestDb::new(kind, "store_teams");
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let ds = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
+        let (alice, bob) = (user(&store, "alice").await, user(&store, "bob").await);
+        let name = TeamName::parse("team", "lab").unwrap();
+        let team = store.create_team(&name, alice).await.unwrap();
+        assert!(matches!(
+            store.create_team(&name, bob).await,
+            Err(StoreError::Unique { .. })
+        ));
+        assert!(store.is_member(team, alice).await.unwrap());
+        assert!(!store.is_member(team, bob).await.unwrap());
+        // Accepting without an invitation changes nothing; with one, it is used up.
+        assert!(!store.accept_invitation(team, bob).await.unwrap());
+        store.invite(team, bob, alice).await.unwrap();
+        store.invite(team, bob, alice).await.unwrap();
+        let waiting = store.invitations_of(bob).await.unwrap();
+        assert_eq!(waiting.len(), 1);
+        assert_eq!(
+            (waiting[0].team.as_str(), waiting[0].invited_by.as_str()),
+            ("lab", "alice")
+        );
+        assert!(store.accept_invitation(team, bob).await.unwrap());
+        assert!(store.invitations_of(bob).await.unwrap().is_empty());
+        assert!(store.is_member(team, bob).await.unwrap());
+        let members: Vec<String> = store
+            .members(team)
+            .await
+            .unwrap()
+            .into_iter()
+            .map(|m| m.name)
+            .collect();
+        assert_eq!(members, ["alice", "bob"]);
+        assert_eq!(store.teams_of(bob).await.unwrap()[0].name, "lab");
+        let found = store.team_by_name("lab").await.unwrap().expect("the team");
+        assert_eq!(
+            (found.id, found.creator_id, found.creator.as_str()),
+            (team, alice, "alice")
+        );
+
+        // Both members' uploads reach the team's one method; Alice's personal method of the
+        // same name is another.
+        let f = fixture("joint");
+        let protocols = [ProtocolName::Bop19];
+        let to_team = |owner, sha| NewSubmission {
+            team_id: Some(team),
+            visibility: Visibility::Private,
+            ..new_submission(&f, owner, ds.id, sha, &protocols)
+        };
+        let Created::New(a) = store
+            .create_submission(&to_team(alice, "a1"), None)
+            .await
+            .unwrap()
+        else {
+            panic!("new");
+        };
+        let Created::New(b) = store
+            .create_submission(&to_team(bob, "b1"), None)
+            .await
+            .unwrap()
+        else {
+            panic!("new");
+        };
+        let own = new_submission(&f, alice, ds.id, "a2", &protocols);
+        let Created::New(c) = store.create_submission(&own, None).await.unwrap() else {
+            panic!("new");
+        };
+        let (a, b, c) = (
+            store.submission(a).await.unwrap().unwrap(),
+            store.submission(b).await.unwrap().unwrap(),
+            store.submission(c).await.unwrap().unwrap(),
+        );
+        assert_eq!(a.method_id, b.method_id);
+        assert_ne!(a.method_id, c.method_id);
+        assert_eq!((a.owner_id, b.owner_id), (Some(alice), Some(bob)));
+        assert_eq!((a.team_id, c.team_id), (Some(team), None));
+        let method = store.method(a.method_id).await.unwrap().expect("method");
+        assert_eq!(
+            (method.owner.as_str(), method.team.as_deref()),
+            ("lab", Some("lab"))
+        );
+        assert_eq!((method.owner_id, method.team_id), (None, Some(team)));
+        let personal = store.method(c.method_id).await.unwrap().expect("method");
+        assert_eq!((personal.owner.as_str(), personal.team), ("alice", None));
+        // Only members' eyes see a method without a public submission.
+        assert_eq!(store.team_methods(team, true).await.unwrap().len(), 0);
+        assert_eq!(
+            store.team_methods(team, false).await.unwrap()[0].id,
+            method.id
+        );
+        // The same file again by the other member is the same submission.
+        let again = store
+            .create_submission(&to_team(alice, "b1"), None)
+            .await
+            .unwrap();
+        assert_eq!(again, Created::Duplicate(b.id));
+
+        assert!(store.remove_member(team, bob).await.unwrap());
+        assert!(!store.remove_member(team, bob).await.unwrap());
+        assert!(!store.is_member(team, bob).await.unwrap());
+    });
+}
+both_databases!(teams_and_their_methods);

@@ -39,9 +39,9 @@ fn paths() -> Value {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
             "/api/v1/methods/{id}": {
-                "get": { "summary": "A method (with its owner's account name) and its public submissions", "parameters": [id_param],
+                "get": { "summary": "A method (with its owner's name: its team's for a team's method, also given as `team`) and its public submissions (a team's members see its private ones too)", "parameters": [id_param],
                     "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } },
-                "post": { "summary": "Change a method's details (its owner or an administrator); fields left out keep their values, an empty one clears it",
+                "post": { "summary": "Change a method's details (its owner, any member of a team's method's team, or an administrator); fields left out keep their values, an empty one clears it",
                     "security": [{ "bearer": [] }], "parameters": [id_param],
                     "requestBody": { "required": true, "content": { "application/json": { "schema": {
                         "type": "object",
@@ -240,7 +240,47 @@ fn paths() -> Value {
                     "parameters": [{ "name": "page", "in": "query", "schema": { "type": "integer", "minimum": 1, "maximum": 100000 } }],
                     "responses": { "200": { "description": "{page, per_page, more, newer, older (page numbers or null), feed, submissions: [{id, created_at, finished_at, method_id, method, dataset, task, owner (`anonymous` for a method under double-blind review), score: {board, name, value} or null}]}" }, "400": { "description": "a page that is no number from 1 to 100000" } } });
     }
+    if let (Some(paths), Value::Object(teams)) = (doc["paths"].as_object_mut(), teams()) {
+        paths.extend(teams);
+    }
+    // Here rather than with the upload's other fields, for the same recursion limit.
+    let upload = "/paths/~1api~1v1~1submissions/post/requestBody/content/multipart~1form-data/schema/properties";
+    if let Some(Value::Object(fields)) = doc.pointer_mut(upload) {
+        fields.insert(
+            "team".into(),
+            json!({ "type": "string", "maxLength": 40, "description": "a team of yours: the files are for the team's method of that name (created as the team's if new), which every member submits to and edits and the boards show under the team's name; each submission still counts against your own fair-use limit. A team you are not a member of (or none of that name) is 404: team `NAME` is not one of your teams" }),
+        );
+    }
     doc
+}
+
+/// The team routes (see `crate::service::teams`).
+fn teams() -> Value {
+    let name_param = json!({ "name": "name", "in": "path", "required": true, "schema": { "type": "string" }, "description": "the team's name" });
+    let user_param = json!({ "name": "user", "in": "path", "required": true, "schema": { "type": "string" }, "description": "the member's account name" });
+    let not_yours = json!({ "description": "no team of that name that you are a member of: {error} says team `NAME` is not one of your teams" });
+    json!({
+        "/api/v1/teams": { "post": { "summary": "Create a team: you are its creator and first member. Its name (1 to 40 letters, digits, `-`, `_`, `.`) is shown as the owner of its methods",
+            "security": [{ "bearer": [] }],
+            "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["name"], "properties": { "name": { "type": "string", "maxLength": 40 } } } } } },
+            "responses": { "201": { "description": "{team: {name, creator, created_at}, url}" }, "400": { "description": "a name that does not parse" }, "409": { "description": "a team of that name exists" } } } },
+        "/api/v1/teams/{name}": { "get": { "summary": "A team: its creator, members (name, joined_at) and methods (to members and administrators every one, to others those with a public submission), and whether you are a member (`member`) and may remove members (`may_remove`)",
+            "parameters": [name_param.clone()],
+            "responses": { "200": { "description": "{team, members, methods, member, may_remove}" }, "404": { "description": "no team of that name" } } } },
+        "/api/v1/teams/{name}/invitations": { "post": { "summary": "Invite an account to the team (members only); it sees the invitation on its account page and joins by accepting. Inviting again keeps the first invitation",
+            "security": [{ "bearer": [] }], "parameters": [name_param.clone()],
+            "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["user"], "properties": { "user": { "type": "string", "description": "the account's name" } } } } } },
+            "responses": { "200": { "description": "{ok, team, invited}" }, "404": not_yours.clone(), "409": { "description": "the account is a member already" } } } },
+        "/api/v1/teams/{name}/accept": { "post": { "summary": "Accept your invitation to the team: you become a member",
+            "security": [{ "bearer": [] }], "parameters": [name_param.clone()],
+            "responses": { "200": { "description": "{ok, team}" }, "404": { "description": "no invitation to that team waits for you" } } } },
+        "/api/v1/teams/{name}/leave": { "post": { "summary": "Leave the team (written to the audit log): you can no longer submit to its methods, edit them or see their private submissions (your own uploads stay yours)",
+            "security": [{ "bearer": [] }], "parameters": [name_param.clone()],
+            "responses": { "200": { "description": "{ok, team, left}" }, "404": not_yours.clone() } } },
+        "/api/v1/teams/{name}/members/{user}/remove": { "post": { "summary": "Remove a member from the team (its creator or an administrator; written to the audit log)",
+            "security": [{ "bearer": [] }], "parameters": [name_param, user_param],
+            "responses": { "200": { "description": "{ok, team, removed}" }, "403": { "description": "a member who did not create the team" }, "404": { "description": "not one of your teams, or the account is not a member" } } } }
+    })
 }
 
 /// The body of every error answer (`crate::web::error::ErrorBody`).

@@ -1,4 +1,5 @@
-//! Registration, signing in and out, and personal API tokens.
+//! Registration, signing in and out, personal API tokens, and the account's teams and the
+//! invitations waiting for it (their forms post to the team routes).
 
 use askama::Template;
 use askama_web::WebTemplate;
@@ -17,6 +18,7 @@ use crate::domain::{Password, TokenLabel, UserName};
 use crate::error::{AppError, AppResult};
 use crate::service::accounts;
 use crate::store::accounts::TokenRow;
+use crate::store::teams::{InvitationRow, TeamRow};
 use crate::web::auth::{self, SESSION_COOKIE, Viewer};
 use crate::web::routes::pages::{filters, site_url};
 
@@ -180,6 +182,8 @@ struct AccountPage {
     name: String,
     csrf: String,
     tokens: Vec<TokenRow>,
+    teams: Vec<TeamRow>,
+    invitations: Vec<InvitationRow>,
     /// A token just created: shown this once, never again.
     new_token: Option<String>,
     /// This service's address, so that the `curl` example runs as copied.
@@ -195,10 +199,13 @@ async fn account_page(
     let Some(session) = &viewer.session else {
         return Ok(Redirect::to("/login?next=/account").into_response());
     };
+    let home = accounts::home(app, &session.user).await?;
     Ok(AccountPage {
         name: session.user.name.clone(),
         csrf: session.csrf_token.clone(),
-        tokens: accounts::tokens(app, &session.user).await?,
+        tokens: home.tokens,
+        teams: home.teams,
+        invitations: home.invitations,
         new_token,
         site: site_url(app, headers),
     }

@@ -371,7 +371,7 @@ async fn method(
 ) -> AppResult<MethodPage> {
     let home = methods::home(&app, id, viewer.user.as_ref()).await?;
     let method = home.method;
-    let may_edit = viewer.can_see(method.owner_id);
+    let may_edit = home.may_edit;
     Ok(MethodPage {
         standings: home.standings,
         submissions: home.submissions,
@@ -543,6 +543,7 @@ struct SubmitPage {
     datasets: Vec<(DatasetRow, Quota)>,
     error: Option<ErrorBody>,
     method: String,
+    team: String,
     dataset: String,
     protocol: String,
     description: String,
@@ -607,6 +608,7 @@ async fn submit(
     .to_string();
     let typed = SubmitPage {
         method: fields.method.clone(),
+        team: fields.team.clone(),
         dataset: fields.dataset.clone(),
         protocol: fields.protocol.clone(),
         description: fields.description.clone(),

@@ -13,7 +13,7 @@ use tokio::io::AsyncWriteExt;
 
 use crate::app::App;
 use crate::domain::{
-    Description, Hardware, Link, MethodName, Task, UploadTask, Visibility, flag, optional,
+    Description, Hardware, Link, MethodName, Task, TeamName, UploadTask, Visibility, flag, optional,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Protocols, Upload, UploadedFile};
@@ -29,6 +29,8 @@ const MAX_FILES: usize = 20;
 #[derive(Debug, Default)]
 pub struct Fields {
     pub method: String,
+    /// The team whose method it is, empty for the uploader's own.
+    pub team: String,
     pub dataset: String,
     pub protocol: String,
     pub description: String,
@@ -51,6 +53,10 @@ impl Fields {
     /// Checks every field and makes the upload the submissions service takes.
     pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
         let method = MethodName::parse(&self.method)?;
+        let team = match self.team.trim() {
+            "" => None,
+            t => Some(TeamName::parse("team", t)?),
+        };
         let (protocols, task) = match self.protocol.trim() {
             "" => (Protocols::asked(&[]), None),
             p => match Task::from_str(p) {
@@ -96,6 +102,7 @@ impl Fields {
         let dataset = self.dataset.trim();
         Ok(Upload {
             method,
+            team,
             dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
             protocols,
             task,
@@ -134,6 +141,7 @@ pub async fn read_upload(
                 continue;
             }
             "method" => &mut fields.method,
+            "team" => &mut fields.team,
             "dataset" => &mut fields.dataset,
             "protocol" => &mut fields.protocol,
             "description" => &mut fields.description,
