@@ -43,7 +43,9 @@ pub async fn submission_action(
         | AdminAction::RetireDataset
         | AdminAction::CoreDataset
         | AdminAction::NotCoreDataset
-        | AdminAction::Snapshot => return Err(AppError::NotFound),
+        | AdminAction::Snapshot
+        | AdminAction::SaveGroup
+        | AdminAction::DeleteGroup => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(

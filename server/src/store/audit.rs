@@ -31,6 +31,10 @@ pub enum AdminAction {
     NotCoreDataset,
     #[serde(rename = "snapshot")]
     Snapshot,
+    #[serde(rename = "save group")]
+    SaveGroup,
+    #[serde(rename = "delete group")]
+    DeleteGroup,
 }
 
 impl AdminAction {
@@ -45,6 +49,8 @@ impl AdminAction {
             AdminAction::CoreDataset => "core dataset",
             AdminAction::NotCoreDataset => "not core dataset",
             AdminAction::Snapshot => "snapshot",
+            AdminAction::SaveGroup => "save group",
+            AdminAction::DeleteGroup => "delete group",
         }
     }
 }
@@ -62,6 +68,8 @@ impl FromStr for AdminAction {
             AdminAction::CoreDataset,
             AdminAction::NotCoreDataset,
             AdminAction::Snapshot,
+            AdminAction::SaveGroup,
+            AdminAction::DeleteGroup,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

@@ -12,7 +12,9 @@ use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
 use super::{Store, StoreError, StoreResult};
-use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
+use crate::domain::{
+    DatasetId, MethodId, Modality, Objects, Onboarding, SubmissionId, TrainingData,
+};
 
 /// A method's entry on a dataset, as every board names it.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,6 +25,9 @@ pub struct EntryHead {
     pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    pub onboarding: Option<Onboarding>,
+    /// The method's `objects` (seen or unseen).
+    pub test_objects: Option<Objects>,
     pub hardware: String,
     pub dataset_id: DatasetId,
     pub dataset: String,
@@ -34,7 +39,8 @@ pub struct EntryHead {
 /// The columns [`head`] reads (all but `submission_id`, which each board's score table gives),
 /// for a query that joins `submissions s` with [`HEAD_JOINS`].
 pub(super) const HEAD_COLUMNS: &str = "s.method_id, m.name AS method, \
-     COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.hardware, \
+     COALESCE(u.name, '') AS owner, m.training_data, m.modality, m.onboarding, \
+     m.objects, m.hardware, \
      s.dataset_id, d.name AS dataset, \
      CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
      THEN 1 ELSE 0 END AS BIGINT) AS pinned";
@@ -50,6 +56,8 @@ pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
         owner: row.try_get("owner")?,
         training_data: optional_column(row, "training_data")?,
         modality: optional_column(row, "modality")?,
+        onboarding: optional_column(row, "onboarding")?,
+        test_objects: optional_column(row, "objects")?,
         hardware: row.try_get("hardware")?,
         dataset_id: row.try_get("dataset_id")?,
         dataset: row.try_get("dataset")?,

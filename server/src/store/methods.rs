@@ -6,8 +6,8 @@ use sqlx::any::AnyRow;
 
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{
-    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, TrainingData,
-    UserId,
+    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, Objects,
+    Onboarding, TrainingData, UserId,
 };
 
 /// A method as the BOP site shows it: who submits it and how it works.
@@ -34,6 +34,8 @@ pub struct MethodRow {
     pub model_scope: Option<ModelScope>,
     /// What the reported times were measured on.
     pub hardware: String,
+    pub onboarding: Option<Onboarding>,
+    pub objects: Option<Objects>,
     pub created_at: i64,
 }
 
@@ -54,6 +56,8 @@ impl MethodRow {
             detections: Some(self.detections.clone()),
             model_scope: word(self.model_scope.map(|m| m.as_str())),
             hardware: Some(self.hardware.clone()),
+            onboarding: word(self.onboarding.map(|o| o.as_str())),
+            objects: word(self.objects.map(|o| o.as_str())),
         }
     }
 }
@@ -67,6 +71,8 @@ pub struct MethodMeta {
     pub code_url: Link,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    pub onboarding: Option<Onboarding>,
+    pub objects: Option<Objects>,
 }
 
 /// An optional enumeration stored as text, empty when not given.
@@ -104,6 +110,8 @@ pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
         detections: row.try_get("detections")?,
         model_scope: optional_column(row, "model_scope")?,
         hardware: row.try_get("hardware")?,
+        onboarding: optional_column(row, "onboarding")?,
+        objects: optional_column(row, "objects")?,
         created_at: row.try_get("created_at")?,
     })
 }
@@ -137,7 +145,8 @@ impl Store {
         let done = sqlx::query(
             "UPDATE methods SET description = $1, authors = $2, year = $3, paper_url = $4, \
              code_url = $5, training_data = $6, detection_modality = $7, modality = $8, \
-             refinement = $9, detections = $10, model_scope = $11, hardware = $12 WHERE id = $13",
+             refinement = $9, detections = $10, model_scope = $11, hardware = $12, \
+             onboarding = $13, objects = $14 WHERE id = $15",
         )
         .bind(d.description.as_str())
         .bind(d.authors.as_str())
@@ -151,6 +160,8 @@ impl Store {
         .bind(d.detections.as_str())
         .bind(word(d.model_scope.map(|m| m.as_str())))
         .bind(d.hardware.as_str())
+        .bind(word(d.onboarding.map(|o| o.as_str())))
+        .bind(word(d.objects.map(|o| o.as_str())))
         .bind(id)
         .execute(&mut *tx)
         .await?;

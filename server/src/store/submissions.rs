@@ -765,8 +765,8 @@ async fn create_one(
         }
         None => sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-             modality, created_at, owner_id, hardware) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) \
-             RETURNING id",
+             modality, created_at, owner_id, hardware, onboarding, objects) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) RETURNING id",
         )
         .bind(new.method.as_str())
         .bind(new.meta.description.as_str())
@@ -777,6 +777,8 @@ async fn create_one(
         .bind(now)
         .bind(new.owner_id)
         .bind(new.hardware.as_str())
+        .bind(new.meta.onboarding.map_or("", |o| o.as_str()))
+        .bind(new.meta.objects.map_or("", |o| o.as_str()))
         .fetch_one(&mut **tx)
         .await?
         .try_get("id")?,
@@ -835,6 +837,8 @@ async fn update_method_meta(
             meta.training_data.map_or("", |t| t.as_str()),
         ),
         ("modality", meta.modality.map_or("", |m| m.as_str())),
+        ("onboarding", meta.onboarding.map_or("", |o| o.as_str())),
+        ("objects", meta.objects.map_or("", |o| o.as_str())),
         ("hardware", hardware.as_str()),
     ] {
         if !value.is_empty() {

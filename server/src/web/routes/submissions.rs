@@ -36,6 +36,8 @@ pub struct Fields {
     pub code_url: String,
     pub training_data: String,
     pub modality: String,
+    pub onboarding: String,
+    pub objects: String,
     pub hardware: String,
     pub visibility: String,
     /// The form's "publish when evaluated" box (sent only when ticked); the API reads
@@ -81,6 +83,8 @@ impl Fields {
             code_url: Link::parse("code_url", &self.code_url)?,
             training_data: optional(&self.training_data)?,
             modality: optional(&self.modality)?,
+            onboarding: optional(&self.onboarding)?,
+            objects: optional(&self.objects)?,
         };
         if files.is_empty() {
             return Err(AppError::BadRequest(
@@ -135,6 +139,8 @@ pub async fn read_upload(
             "code_url" => &mut fields.code_url,
             "training_data" => &mut fields.training_data,
             "modality" => &mut fields.modality,
+            "onboarding" => &mut fields.onboarding,
+            "objects" => &mut fields.objects,
             "hardware" => &mut fields.hardware,
             "visibility" => &mut fields.visibility,
             "publish" => &mut fields.publish,
