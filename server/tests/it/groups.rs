@@ -347,15 +347,16 @@ fn groups(kind: Db) {
     assert_eq!(ranks(&board("?group=core")), ranks(&default));
     assert!(strings(&default["groups"]).contains(&"BOP-H3".to_string()));
 
-    // Only an administrator creates a group; to anyone else the route does not exist.
+    // Only an administrator creates a group: to another account the route does not exist (as
+    // every admin route), and a request without a valid token is refused.
     let only_b = json!({ "name": "only-B", "datasets": ["synthB", "lmo"] });
-    for token in [server.token.as_str(), ""] {
+    for (token, status) in [(server.token.as_str(), 404), ("", 401)] {
         let r = post_as(
             &format!("{base}/api/v1/admin/groups"),
             token,
             Some(only_b.clone()),
         );
-        assert_eq!(r.status(), 404, "token {token:?}");
+        assert_eq!(r.status(), status, "token {token:?}");
     }
     assert!(group(&base, "only-B").is_none());
     let r = post_as(&format!("{base}/api/v1/admin/groups"), &root, Some(only_b));

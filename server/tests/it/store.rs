@@ -984,9 +984,9 @@ both_databases!(board_version_follows_board_changes);
 /// Groups of datasets: BOP's three seeded by the migration; a group is saved, its members
 /// replaced, deleted with them; every change moves the board version.
 fn dataset_groups(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let db = TestDb::new(kind, "store_groups");
     run(async {
-        let dir = tempfile::tempdir().expect("tmp");
-        let db = TestDb::new(kind, "store_groups");
         let (store, _) = store(kind, &db, dir.path()).await;
         let names = |groups: &[server::store::groups::GroupRow]| {
             groups.iter().map(|g| g.name.clone()).collect::<Vec<_>>()
