@@ -51,8 +51,8 @@ pub enum Format {
 pub struct BoardKey {
     pub format: Format,
     pub protocol: BoardProtocol,
-    /// The query's (dataset, sort, training, modality, curves).
-    pub query: [Option<String>; 5],
+    /// The query's (dataset, sort, training, modality, curves, objects, onboarding, group).
+    pub query: [Option<String>; 8],
 }
 
 /// A rendered board.

@@ -16,6 +16,10 @@ use unicode_normalization::UnicodeNormalization;
 /// because the boards' rule for core datasets (a service) leaves it out once another is served.
 pub const DEMO_DATASET: &str = "synthdemo";
 
+/// The group of datasets a board ranks over when no other is asked for: the core datasets
+/// (see `service::groups`).
+pub const DEFAULT_GROUP: &str = "core";
+
 /// A value that does not parse, with the field it came from.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("field `{field}` {problem}")]
@@ -131,6 +135,48 @@ text_newtype!(
     #[derive(Default)]
     Note
 );
+
+text_newtype!(
+    /// The name of a group of datasets: 1 to 60 ASCII letters, digits, `-`, `_` or `.` (it is
+    /// written in board URLs as `?group=NAME`).
+    GroupName
+);
+text_newtype!(
+    /// A dataset as a group names it: its folder name, served here or not, 1 to 100 visible
+    /// characters without `/`, `\`, `,` or a leading `.`.
+    DatasetName
+);
+
+impl GroupName {
+    pub fn parse(value: &str) -> Result<Self, FieldError> {
+        let name = value.trim();
+        if name.is_empty()
+            || name.len() > 60
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        {
+            return Err(FieldError::new(
+                "name",
+                "must have 1 to 60 letters, digits, `-`, `_` or `.`",
+            ));
+        }
+        Ok(GroupName(name.to_string()))
+    }
+}
+
+impl DatasetName {
+    pub fn parse(value: &str) -> Result<Self, FieldError> {
+        let name = plain_text("datasets", value, 100)?;
+        if name.starts_with('.') || name.contains(['/', '\\', ',']) {
+            return Err(FieldError::new(
+                "datasets",
+                format!("names folders: `{name}` is not a folder name"),
+            ));
+        }
+        Ok(DatasetName(name))
+    }
+}
 
 impl MethodName {
     pub fn parse(value: &str) -> Result<Self, FieldError> {
@@ -307,6 +353,17 @@ word_enum!(
 word_enum!(
     /// The input a method uses, as the BOP site asks.
     Modality, "modality" { Rgb = "rgb", Depth = "depth", RgbD = "rgb-d" }
+);
+
+word_enum!(
+    /// How a method onboards the test objects, as the BOP site's boards tell apart: from
+    /// their 3D models, or from reference images without a model.
+    Onboarding, "onboarding" { ModelBased = "model-based", ModelFree = "model-free" }
+);
+word_enum!(
+    /// Whether a method was trained on images of the test objects (`seen`) or onboards them
+    /// only at test time (`unseen`), as the BOP site's boards tell apart.
+    Objects, "objects" { Seen = "seen", Unseen = "unseen" }
 );
 
 word_enum!(
@@ -573,6 +630,8 @@ pub struct MethodForm {
     pub detections: Option<String>,
     pub model_scope: Option<String>,
     pub hardware: Option<String>,
+    pub onboarding: Option<String>,
+    pub objects: Option<String>,
     /// `true`: under double-blind review (see [`MethodDetails::anonymous`]).
     #[serde(default, deserialize_with = "text_or_flag")]
     pub anonymous: Option<String>,
@@ -639,6 +698,8 @@ pub struct MethodDetails {
     /// Under double-blind review: everyone but its owner and the administrators is shown
     /// "anonymous" instead of the owner, and no authors, paper or code links.
     pub anonymous: bool,
+    pub onboarding: Option<Onboarding>,
+    pub objects: Option<Objects>,
 }
 
 impl MethodForm {
@@ -661,6 +722,8 @@ impl MethodForm {
             model_scope: optional(&text(self.model_scope, stored.model_scope))?,
             hardware: Hardware::parse(&text(self.hardware, stored.hardware))?,
             anonymous: flag("anonymous", &text(self.anonymous, stored.anonymous))?,
+            onboarding: optional(&text(self.onboarding, stored.onboarding))?,
+            objects: optional(&text(self.objects, stored.objects))?,
         })
     }
 }

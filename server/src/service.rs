@@ -10,6 +10,7 @@ pub mod accounts;
 pub mod catalogue;
 pub mod datasets;
 pub mod downloads;
+pub mod groups;
 pub mod inspection;
 pub mod leaderboard;
 pub mod methods;

@@ -27,6 +27,7 @@ pub mod coco_scores;
 pub mod copy;
 pub mod datasets;
 pub mod files;
+pub mod groups;
 pub mod health;
 pub mod methods;
 pub mod pose_errors;

@@ -17,10 +17,11 @@ use crate::app::App;
 use crate::board_cache::{BoardKey, Rendered};
 use crate::datasets::config::BOP24_TARGETS;
 use crate::domain::{
-    BoardProtocol, DEMO_DATASET, FieldError, MethodId, Modality, SubmissionId, TrainingData,
+    BoardProtocol, FieldError, MethodId, Modality, Objects, Onboarding, SubmissionId, TrainingData,
     optional,
 };
 use crate::error::{AppError, AppResult};
+use crate::service::groups;
 use crate::service::ranking::{self, BoardRow, Cell, Entry, Sort};
 use crate::service::visibility;
 use crate::store::board_rows::EntryHead;
@@ -43,6 +44,12 @@ pub struct BoardFilter {
     pub training: Option<String>,
     /// Only methods using this input (`rgb`, `depth`, `rgb-d`).
     pub modality: Option<String>,
+    /// Only methods for test objects seen in training or not (`seen`, `unseen`).
+    pub objects: Option<String>,
+    /// Only methods onboarding objects this way (`model-based`, `model-free`).
+    pub onboarding: Option<String>,
+    /// The group of datasets ranked over (see [`groups`]); without it, the default group.
+    pub group: Option<String>,
     /// With one dataset: the methods whose curves the charts overlay, as method ids separated
     /// by commas (at most [`OVERLAID`]); without it, the best ranked entries.
     pub curves: Option<String>,
@@ -53,6 +60,8 @@ struct Query {
     sort: Sort,
     training: Option<TrainingData>,
     modality: Option<Modality>,
+    objects: Option<Objects>,
+    onboarding: Option<Onboarding>,
     /// The methods chosen for the curves, when chosen.
     curves: Option<Vec<MethodId>>,
 }
@@ -71,8 +80,8 @@ impl Query {
                 )));
             }
         };
-        // The query names its parameters `training` and `modality`, whatever the fields of a
-        // method are called.
+        // The query names its parameters `training`, `modality`, `objects` and `onboarding`,
+        // whatever the fields of a method are called.
         fn parameter(name: &'static str) -> impl Fn(FieldError) -> AppError {
             move |e| AppError::BadRequest(format!("parameter `{name}` {}", e.problem))
         }
@@ -80,6 +89,8 @@ impl Query {
             sort,
             training: optional(&field(&filter.training)).map_err(parameter("training"))?,
             modality: optional(&field(&filter.modality)).map_err(parameter("modality"))?,
+            objects: optional(&field(&filter.objects)).map_err(parameter("objects"))?,
+            onboarding: optional(&field(&filter.onboarding)).map_err(parameter("onboarding"))?,
             curves: curves(&field(&filter.curves))?,
         })
     }
@@ -87,6 +98,8 @@ impl Query {
     fn matches(&self, e: &Entry) -> bool {
         self.training.is_none_or(|t| e.training_data == Some(t))
             && self.modality.is_none_or(|m| e.modality == Some(m))
+            && self.objects.is_none_or(|o| e.test_objects == Some(o))
+            && self.onboarding.is_none_or(|o| e.onboarding == Some(o))
     }
 }
 
@@ -112,17 +125,6 @@ fn curves(value: &str) -> AppResult<Option<Vec<MethodId>>> {
         }
     }
     Ok(Some(ids))
-}
-
-/// The core datasets: those flagged core, and of those never flagged, every one but the demo
-/// dataset once another is served (the demo is there to try the service, not to rank methods).
-pub fn core_datasets(datasets: &[DatasetRow]) -> Vec<DatasetRow> {
-    let others = datasets.iter().any(|d| d.name != DEMO_DATASET);
-    datasets
-        .iter()
-        .filter(|d| d.core.unwrap_or(!(others && d.name == DEMO_DATASET)))
-        .cloned()
-        .collect()
 }
 
 /// Whether a dataset takes bop24 uploads: its folder (the server's, which serves the boards)
@@ -156,9 +158,12 @@ pub const BOP24_PARTS: [&str; 5] = [
 pub struct Ranked {
     /// Every dataset served.
     pub datasets: Vec<DatasetRow>,
-    /// The core datasets.
+    /// The group ranked over: its name, and every group's name to choose from.
+    pub group: String,
+    pub groups: Vec<String>,
+    /// The group's datasets served here (the default group's: the core datasets).
     pub core: Vec<DatasetRow>,
-    /// The datasets shown as columns: the core ones, or the one selected.
+    /// The datasets shown as columns: the group's, or the one selected.
     pub columns: Vec<DatasetRow>,
     /// The dataset asked for, if one was.
     pub selected: Option<DatasetRow>,
@@ -199,6 +204,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
         _ => None,
     };
     let query = Query::parse(filter, &datasets)?;
+    let group = groups::of_board(app, filter.group.as_deref(), &datasets).await?;
     let selected_id = selected.as_ref().map(|d| d.id);
     let (mut coco, mut bop24): (Vec<CocoBoardEntry>, Vec<Bop24BoardEntry>) =
         (Vec::new(), Vec::new());
@@ -222,11 +228,8 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
         }
     };
     let core: Vec<DatasetRow> = match protocol {
-        BoardProtocol::Bop24 => core_datasets(&datasets)
-            .into_iter()
-            .filter(takes_bop24)
-            .collect(),
-        BoardProtocol::Pose(_) | BoardProtocol::Coco(_) => core_datasets(&datasets),
+        BoardProtocol::Bop24 => group.columns.into_iter().filter(takes_bop24).collect(),
+        BoardProtocol::Pose(_) | BoardProtocol::Coco(_) => group.columns,
     };
     let columns: Vec<DatasetRow> = match &selected {
         Some(d) => vec![d.clone()],
@@ -309,6 +312,8 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
             BoardProtocol::Coco(_) => evaluator::coco::STAT_NAMES.to_vec(),
         },
         datasets,
+        group: group.name,
+        groups: group.names,
         core,
         columns,
         selected,
@@ -484,6 +489,8 @@ fn entry(head: EntryHead, cell: Cell, objects: BTreeMap<i64, f64>) -> Entry {
         owner: visibility::public_owner(head.owner, head.anonymous),
         training_data: head.training_data,
         modality: head.modality,
+        onboarding: head.onboarding,
+        test_objects: head.test_objects,
         hardware: head.hardware,
         dataset_id: head.dataset_id,
         dataset: head.dataset,
@@ -511,47 +518,4 @@ pub fn bop24_objects(r: &DetectionReport) -> BTreeMap<i64, f64> {
         .into_iter()
         .filter_map(|(o, mssd)| Some((o, (mssd + mspd.get(&o)?) / 2.0)))
         .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn dataset(name: &str, core: Option<bool>) -> DatasetRow {
-        DatasetRow {
-            id: crate::domain::DatasetId::new(0),
-            name: name.to_string(),
-            path: String::new(),
-            objects_count: 0,
-            scenes_count: 0,
-            images_count: 0,
-            targets_count: 0,
-            instances_count: 0,
-            image_width: 0,
-            image_height: 0,
-            added_at: 0,
-            retired: false,
-            content_hash: None,
-            core,
-        }
-    }
-
-    fn names(datasets: &[DatasetRow]) -> Vec<String> {
-        core_datasets(datasets)
-            .into_iter()
-            .map(|d| d.name)
-            .collect()
-    }
-
-    #[test]
-    fn the_demo_is_core_only_alone_unless_set() {
-        assert_eq!(names(&[dataset(DEMO_DATASET, None)]), [DEMO_DATASET]);
-        let both = [dataset("lmo", None), dataset(DEMO_DATASET, None)];
-        assert_eq!(names(&both), ["lmo"]);
-        let set = [
-            dataset("lmo", Some(false)),
-            dataset(DEMO_DATASET, Some(true)),
-        ];
-        assert_eq!(names(&set), [DEMO_DATASET]);
-    }
 }

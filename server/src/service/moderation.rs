@@ -45,7 +45,9 @@ pub async fn submission_action(
         | AdminAction::NotCoreDataset
         | AdminAction::Snapshot
         | AdminAction::LeaveTeam
-        | AdminAction::RemoveTeamMember => return Err(AppError::NotFound),
+        | AdminAction::RemoveTeamMember
+        | AdminAction::SaveGroup
+        | AdminAction::DeleteGroup => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(

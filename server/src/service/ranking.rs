@@ -9,7 +9,9 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
+use crate::domain::{
+    DatasetId, MethodId, Modality, Objects, Onboarding, SubmissionId, TrainingData,
+};
 use crate::preflight::RedFlag;
 use crate::store::datasets::DatasetRow;
 use crate::store::scores::ScoreRecord;
@@ -69,6 +71,10 @@ pub struct BoardRow {
     pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    pub onboarding: Option<Onboarding>,
+    /// The method's `objects` (seen or unseen); named apart from `objects`, the per-object
+    /// scores.
+    pub test_objects: Option<Objects>,
     /// The method's hardware, which its times were measured on.
     pub hardware: String,
     /// Per dataset shown, the score of the method's entry there.
@@ -98,6 +104,8 @@ pub struct Entry {
     pub owner: String,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    pub onboarding: Option<Onboarding>,
+    pub test_objects: Option<Objects>,
     pub hardware: String,
     pub dataset_id: DatasetId,
     pub dataset: String,
@@ -158,6 +166,8 @@ pub fn rows(
             owner: e.owner.clone(),
             training_data: e.training_data,
             modality: e.modality,
+            onboarding: e.onboarding,
+            test_objects: e.test_objects,
             hardware: e.hardware.clone(),
             scores: BTreeMap::new(),
             covered: 0,
@@ -359,6 +369,8 @@ mod tests {
             owner: "someone".to_string(),
             training_data: None,
             modality: None,
+            onboarding: None,
+            test_objects: None,
             hardware: String::new(),
             dataset_id: d.id,
             dataset: d.name.clone(),

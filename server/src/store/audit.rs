@@ -37,6 +37,10 @@ pub enum AdminAction {
     LeaveTeam,
     #[serde(rename = "remove team member")]
     RemoveTeamMember,
+    #[serde(rename = "save group")]
+    SaveGroup,
+    #[serde(rename = "delete group")]
+    DeleteGroup,
 }
 
 impl AdminAction {
@@ -53,6 +57,8 @@ impl AdminAction {
             AdminAction::Snapshot => "snapshot",
             AdminAction::LeaveTeam => "leave team",
             AdminAction::RemoveTeamMember => "remove team member",
+            AdminAction::SaveGroup => "save group",
+            AdminAction::DeleteGroup => "delete group",
         }
     }
 }
@@ -72,6 +78,8 @@ impl FromStr for AdminAction {
             AdminAction::Snapshot,
             AdminAction::LeaveTeam,
             AdminAction::RemoveTeamMember,
+            AdminAction::SaveGroup,
+            AdminAction::DeleteGroup,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

@@ -12,7 +12,9 @@ use sqlx::any::AnyRow;
 
 use super::methods::optional_column;
 use super::{Store, StoreError, StoreResult};
-use crate::domain::{DatasetId, MethodId, Modality, SubmissionId, TrainingData};
+use crate::domain::{
+    DatasetId, MethodId, Modality, Objects, Onboarding, SubmissionId, TrainingData,
+};
 
 /// A method's entry on a dataset, as every board names it.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,6 +28,9 @@ pub struct EntryHead {
     pub anonymous: bool,
     pub training_data: Option<TrainingData>,
     pub modality: Option<Modality>,
+    pub onboarding: Option<Onboarding>,
+    /// The method's `objects` (seen or unseen).
+    pub test_objects: Option<Objects>,
     pub hardware: String,
     pub dataset_id: DatasetId,
     pub dataset: String,
@@ -38,7 +43,7 @@ pub struct EntryHead {
 /// for a query that joins `submissions s` with [`HEAD_JOINS`].
 pub(super) const HEAD_COLUMNS: &str = "s.method_id, m.name AS method, \
      COALESCE(t.name, u.name, '') AS owner, m.anonymous, m.training_data, m.modality, \
-     m.hardware, \
+     m.onboarding, m.objects, m.hardware, \
      s.dataset_id, d.name AS dataset, \
      CAST(CASE WHEN EXISTS (SELECT 1 FROM entry_pins p WHERE p.submission_id = s.id) \
      THEN 1 ELSE 0 END AS BIGINT) AS pinned";
@@ -56,6 +61,8 @@ pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
         anonymous: row.try_get::<i64, _>("anonymous")? != 0,
         training_data: optional_column(row, "training_data")?,
         modality: optional_column(row, "modality")?,
+        onboarding: optional_column(row, "onboarding")?,
+        test_objects: optional_column(row, "objects")?,
         hardware: row.try_get("hardware")?,
         dataset_id: row.try_get("dataset_id")?,
         dataset: row.try_get("dataset")?,

@@ -40,7 +40,13 @@ pub(super) const TABLES: &[&str] = &[
     "snapshot_boards",
     "score_changes",
     "worker_beats",
+    "dataset_groups",
+    "dataset_group_members",
 ];
+
+/// Tables the migrations seed with defaults (BOP's dataset groups): a fresh target holds those
+/// rows, which the copy replaces with the source's, so they do not make the target "filled".
+const SEEDED: &[&str] = &["dataset_groups", "dataset_group_members"];
 
 /// Tables the migrations create and seed themselves, holding no data of their own: not copied.
 /// The board version is bumped on the target instead, so servers already running on it drop
@@ -124,7 +130,7 @@ impl Store {
         };
         let mut tx = target.write_transaction().await?;
         let mut filled = Vec::new();
-        for table in TABLES {
+        for table in TABLES.iter().filter(|t| !SEEDED.contains(t)) {
             let any = sqlx::query(sqlx::AssertSqlSafe(format!(
                 "SELECT 1 FROM {} LIMIT 1",
                 quoted(table)

@@ -30,7 +30,7 @@ pub struct DatasetRow {
     #[serde(skip)]
     pub content_hash: Option<String>,
     /// Whether it is a core dataset as set by `--core-datasets` or an administrator; `None`:
-    /// never set, the default rule decides (see `service::leaderboard::core_datasets`).
+    /// never set, the default rule decides (see `service::groups::core_datasets`).
     #[serde(skip)]
     pub core: Option<bool>,
 }

@@ -6,8 +6,8 @@ use sqlx::any::AnyRow;
 
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{
-    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, TeamId,
-    TrainingData, UserId,
+    Description, Link, MethodDetails, MethodForm, MethodId, Modality, ModelScope, Objects,
+    Onboarding, TeamId, TrainingData, UserId,
 };
 
 /// A method as the BOP site shows it: who submits it and how it works.
@@ -42,6 +42,8 @@ pub struct MethodRow {
     pub hardware: String,
     /// Under double-blind review: its owner is not named to the public until revealed.
     pub anonymous: bool,
+    pub onboarding: Option<Onboarding>,
+    pub objects: Option<Objects>,
     pub created_at: i64,
 }
 
@@ -63,6 +65,8 @@ impl MethodRow {
             model_scope: word(self.model_scope.map(|m| m.as_str())),
             hardware: Some(self.hardware.clone()),
             anonymous: Some(self.anonymous.to_string()),
+            onboarding: word(self.onboarding.map(|o| o.as_str())),
+            objects: word(self.objects.map(|o| o.as_str())),
         }
     }
 }
@@ -78,6 +82,8 @@ pub struct MethodMeta {
     pub modality: Option<Modality>,
     /// Under double-blind review from now on (`Some(true)`) or not; `None` leaves it.
     pub anonymous: Option<bool>,
+    pub onboarding: Option<Onboarding>,
+    pub objects: Option<Objects>,
 }
 
 /// An optional enumeration stored as text, empty when not given.
@@ -119,6 +125,8 @@ pub(crate) fn method(row: &AnyRow) -> StoreResult<MethodRow> {
         model_scope: optional_column(row, "model_scope")?,
         hardware: row.try_get("hardware")?,
         anonymous: row.try_get::<i64, _>("anonymous")? != 0,
+        onboarding: optional_column(row, "onboarding")?,
+        objects: optional_column(row, "objects")?,
         created_at: row.try_get("created_at")?,
     })
 }
@@ -153,7 +161,7 @@ impl Store {
             "UPDATE methods SET description = $1, authors = $2, year = $3, paper_url = $4, \
              code_url = $5, training_data = $6, detection_modality = $7, modality = $8, \
              refinement = $9, detections = $10, model_scope = $11, hardware = $12, \
-             anonymous = $13 WHERE id = $14",
+             anonymous = $13, onboarding = $14, objects = $15 WHERE id = $16",
         )
         .bind(d.description.as_str())
         .bind(d.authors.as_str())
@@ -168,6 +176,8 @@ impl Store {
         .bind(word(d.model_scope.map(|m| m.as_str())))
         .bind(d.hardware.as_str())
         .bind(i64::from(d.anonymous))
+        .bind(word(d.onboarding.map(|o| o.as_str())))
+        .bind(word(d.objects.map(|o| o.as_str())))
         .bind(id)
         .execute(&mut *tx)
         .await?;

@@ -837,8 +837,8 @@ async fn create_one(
         }
         None => sqlx::query(
             "INSERT INTO methods (name, description, paper_url, code_url, training_data, \
-             modality, created_at, owner_id, hardware, anonymous, team_id) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) RETURNING id",
+             modality, created_at, owner_id, hardware, anonymous, team_id, onboarding, objects) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13) RETURNING id",
         )
         .bind(new.method.as_str())
         .bind(new.meta.description.as_str())
@@ -851,6 +851,8 @@ async fn create_one(
         .bind(new.hardware.as_str())
         .bind(i64::from(new.meta.anonymous == Some(true)))
         .bind(new.team_id)
+        .bind(new.meta.onboarding.map_or("", |o| o.as_str()))
+        .bind(new.meta.objects.map_or("", |o| o.as_str()))
         .fetch_one(&mut **tx)
         .await?
         .try_get("id")?,
@@ -909,6 +911,8 @@ async fn update_method_meta(
             meta.training_data.map_or("", |t| t.as_str()),
         ),
         ("modality", meta.modality.map_or("", |m| m.as_str())),
+        ("onboarding", meta.onboarding.map_or("", |o| o.as_str())),
+        ("objects", meta.objects.map_or("", |o| o.as_str())),
         ("hardware", hardware.as_str()),
     ] {
         if !value.is_empty() {

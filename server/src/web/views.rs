@@ -20,8 +20,9 @@ use crate::domain::{
 use crate::error::AppResult;
 use crate::preflight::Preflight;
 use crate::service::catalogue::{self, RECENT_PER_PAGE, RecentPage};
+pub use crate::service::groups::core_datasets;
 use crate::service::leaderboard::{self, Curves};
-pub use crate::service::leaderboard::{BoardFilter, OVERLAID, core_datasets};
+pub use crate::service::leaderboard::{BoardFilter, OVERLAID};
 pub use crate::service::ranking::{BoardRow, Cell};
 use crate::service::{publishing, submission_details};
 use crate::store::accounts::User;
@@ -48,9 +49,14 @@ pub struct Leaderboard {
     pub stat_names: Vec<&'static str>,
     /// Every dataset served (each has its own board).
     pub datasets: Vec<DatasetRow>,
-    /// The names of the core datasets: the columns of the main table.
+    /// The group of datasets ranked over (`?group=`; `core` by default).
+    pub group: String,
+    /// Every group's name, the default first: the groups the page offers.
+    pub groups: Vec<String>,
+    /// The names of the group's datasets served here: the columns of the main table (the
+    /// default group's are the core datasets, hence the key).
     pub core: Vec<String>,
-    /// The datasets shown as columns: the core ones, or the one selected.
+    /// The datasets shown as columns: the group's, or the one selected.
     pub columns: Vec<DatasetRow>,
     /// With `?dataset=NAME`, that dataset (and the rows carry per-object scores).
     pub dataset: Option<DatasetRow>,
@@ -85,11 +91,16 @@ impl BoardFilter {
         self.curves.as_deref().is_some_and(|c| !c.is_empty())
     }
 
-    /// Whether the filter leaves out methods by their training data or input.
+    /// Whether the filter leaves out methods by their training data, input or categories.
     pub fn narrows(&self) -> bool {
-        [&self.training, &self.modality]
-            .iter()
-            .any(|v| v.as_deref().is_some_and(|v| !v.trim().is_empty()))
+        [
+            &self.training,
+            &self.modality,
+            &self.objects,
+            &self.onboarding,
+        ]
+        .iter()
+        .any(|v| v.as_deref().is_some_and(|v| !v.trim().is_empty()))
     }
 
     /// The query string of this board without the filters on methods.
@@ -97,6 +108,8 @@ impl BoardFilter {
         BoardFilter {
             training: None,
             modality: None,
+            objects: None,
+            onboarding: None,
             ..self.clone()
         }
         .query()
@@ -113,8 +126,11 @@ impl BoardFilter {
         let mut pairs: Vec<(&str, String)> = Vec::new();
         for (k, v) in [
             ("dataset", &self.dataset),
+            ("group", &self.group),
             ("training", &self.training),
             ("modality", &self.modality),
+            ("objects", &self.objects),
+            ("onboarding", &self.onboarding),
             ("sort", &self.sort),
             ("curves", &self.curves),
         ] {
@@ -236,6 +252,8 @@ pub async fn leaderboard(
                 .collect()
         }),
         stat_names: board.stat_names,
+        group: board.group,
+        groups: board.groups,
         core: board.core.into_iter().map(|d| d.name).collect(),
         columns: board.columns,
         datasets: board.datasets,

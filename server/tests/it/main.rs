@@ -35,6 +35,7 @@ mod eval_cli;
 mod exports;
 mod fair_use;
 mod first_use;
+mod groups;
 mod hostile_input;
 mod method_page;
 mod ops;

@@ -9,8 +9,8 @@ use crate::common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
-    DatasetId, Hardware, MethodDetails, MethodName, Modality, SubmissionId, Task, TeamName,
-    TokenLabel, UserId, UserName, Visibility,
+    DatasetId, DatasetName, GroupName, Hardware, MethodDetails, MethodName, Modality, SubmissionId,
+    Task, TeamName, TokenLabel, UserId, UserName, Visibility,
 };
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
@@ -1119,3 +1119,67 @@ fn teams_and_their_methods(kind: Db) {
     });
 }
 both_databases!(teams_and_their_methods);
+
+/// Groups of datasets: BOP's three seeded by the migration; a group is saved, its members
+/// replaced, deleted with them; every change moves the board version.
+fn dataset_groups(kind: Db) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let db = TestDb::new(kind, "store_groups");
+    run(async {
+        let (store, _) = store(kind, &db, dir.path()).await;
+        let names = |groups: &[server::store::groups::GroupRow]| {
+            groups.iter().map(|g| g.name.clone()).collect::<Vec<_>>()
+        };
+        let seeded = store.groups().await.expect("groups");
+        assert_eq!(
+            names(&seeded),
+            ["BOP-Classic-Core", "BOP-Industrial", "BOP-H3"],
+            "{kind:?}"
+        );
+        assert_eq!(seeded[2].datasets, ["handal", "hopev2", "hot3d"]);
+
+        let name = GroupName::parse("mine").expect("name");
+        let members = |list: &[&str]| {
+            list.iter()
+                .map(|d| DatasetName::parse(d).expect("dataset"))
+                .collect::<Vec<_>>()
+        };
+        let version = store.board_version().await.expect("version");
+        assert!(
+            store
+                .save_group(&name, &members(&["lmo", "synthA"]))
+                .await
+                .expect("saved")
+        );
+        assert!(store.board_version().await.expect("version") > version);
+        // Saved again: the members are replaced, the group is not new.
+        assert!(
+            !store
+                .save_group(&name, &members(&["ycbv"]))
+                .await
+                .expect("saved")
+        );
+        let groups = store.groups().await.expect("groups");
+        assert_eq!(names(&groups).last().map(String::as_str), Some("mine"));
+        assert_eq!(groups.last().expect("mine").datasets, ["ycbv"]);
+        assert!(store.delete_group(&name).await.expect("deleted"));
+        assert!(!store.delete_group(&name).await.expect("answered"));
+        assert_eq!(
+            names(&store.groups().await.expect("groups")),
+            names(&seeded)
+        );
+        // A deleted group leaves no member behind for a new group of the same name.
+        assert!(store.save_group(&name, &[]).await.expect("saved"));
+        assert!(
+            store
+                .groups()
+                .await
+                .expect("groups")
+                .last()
+                .expect("mine")
+                .datasets
+                .is_empty()
+        );
+    });
+}
+both_databases!(dataset_groups);

@@ -202,6 +202,8 @@ fn csv(board: &Leaderboard) -> String {
         "owner",
         "training_data",
         "modality",
+        "objects",
+        "onboarding",
         "hardware",
     ]
     .iter()
@@ -220,6 +222,8 @@ fn csv(board: &Leaderboard) -> String {
             row.owner.clone(),
             row.training_data.map_or("", |t| t.as_str()).to_string(),
             row.modality.map_or("", |m| m.as_str()).to_string(),
+            row.test_objects.map_or("", |o| o.as_str()).to_string(),
+            row.onboarding.map_or("", |o| o.as_str()).to_string(),
             row.hardware.clone(),
         ];
         for d in &board.columns {

@@ -38,30 +38,6 @@ fn paths() -> Value {
         "paths": {
             "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
-            "/api/v1/methods/{id}": {
-                "get": { "summary": "A method (with its owner's name: its team's for a team's method, also given as `team`) and its public submissions (a team's members see its private ones too)", "parameters": [id_param],
-                    "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } },
-                "post": { "summary": "Change a method's details (its owner, any member of a team's method's team, or an administrator); fields left out keep their values, an empty one clears it",
-                    "security": [{ "bearer": [] }], "parameters": [id_param],
-                    "requestBody": { "required": true, "content": { "application/json": { "schema": {
-                        "type": "object",
-                        "properties": {
-                            "description": { "type": "string", "maxLength": 10000 },
-                            "authors": { "type": "string", "maxLength": 1000 },
-                            "year": { "type": ["integer", "string"], "description": "1900 to 2100, or empty" },
-                            "paper_url": { "type": "string", "description": "an http(s) link" },
-                            "code_url": { "type": "string", "description": "an http(s) link" },
-                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both", ""] },
-                            "detection_modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the detection stage" },
-                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the pose stage" },
-                            "refinement": { "type": "string", "maxLength": 1000 },
-                            "detections": { "type": "string", "maxLength": 1000, "description": "the detections the method starts from" },
-                            "model_scope": { "type": "string", "enum": ["all", "per-object", ""], "description": "one model for all objects or one per object" },
-                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" }
-                        } } } } },
-                    "responses": { "200": { "description": "{method}: as stored" }, "400": { "description": "a field that does not parse" }, "401": { "description": "no valid API token" },
-                        "403": { "description": "the method is another account's" }, "404": { "description": "no such method, or another account's private one" } } }
-            },
             "/api/v1/submissions/{id}/pin": { "post": { "summary": "Make this submission its method's entry on its dataset (for every protocol it is scored under) instead of the best one; its owner or an administrator",
                 "security": [{ "bearer": [] }], "parameters": [id_param],
                 "responses": { "200": { "description": "{ok, submission, pinned: true}" }, "401": { "description": "no valid API token" }, "403": { "description": "another account's submission" }, "404": { "description": "no such submission" } } } },
@@ -73,38 +49,6 @@ fn paths() -> Value {
                 "parameters": [{ "name": "name", "in": "path", "required": true, "schema": { "type": "string" } }],
                 "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["core"], "properties": { "core": { "type": "boolean" } } } } } },
                 "responses": { "200": { "description": "{ok, dataset, core}" }, "404": { "description": "no such served dataset, or not an administrator" } } } },
-            "/api/v1/submissions": {
-                "get": { "summary": "The public finished submissions, newest first (see below)" },
-                "post": {
-                    "summary": "Upload result files (BOP'19 CSV, or BOP'22 2D JSON; one per dataset) for evaluation",
-                    "security": [{ "bearer": [] }],
-                    "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
-                        "type": "object", "required": ["method", "file"],
-                        "properties": {
-                            "method": { "type": "string", "maxLength": 100 },
-                            "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
-                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop19,eccv18", "bop24", "bop22-det", "bop22-seg"], "description": "default: a CSV file is scored under bop19 and eccv18, its pre-flight warning about bop19's selection only (`bop19,eccv18` for both's); bop24: a CSV file scored for 6D detection (average precision on the images of the dataset's test_targets_bop24.json, the toolkit's cap of estimates per image; 400 naming the file when the dataset has none); for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
-                            "description": { "type": "string" },
-                            "paper_url": { "type": "string" },
-                            "code_url": { "type": "string" },
-                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
-                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
-                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
-                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: private (only its owner and the administrators see it; everyone else gets 404). public: published once evaluated, unless the pre-flight raises red flags (translations in metres, more than half of the targets without an estimate, estimates for objects the dataset lacks): then it stays private, `held`, until its owner confirms (POST .../visibility with confirm=true). Anything else is 400. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's; without the field it keeps its own" },
-                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset, or a .zip of them (unpacked, within the upload limit); each result file becomes a submission" }
-                        } } } } },
-                    "responses": {
-                        "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
-                        "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
-                        "200": { "description": "every file was already submitted for this method (same dataset and protocols): the existing submissions, not evaluated again, with the visibility asked for if one was given" },
-                        "408": { "description": "the upload stalled: its body must keep delivering a minimum (by default 64 KiB every 20 s), however long the whole upload takes" },
-                        "400": { "description": "a missing or bad field" },
-                        "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
-                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
-                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it and when the next is allowed, as a UTC date and time): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
-                    }
-                }
-            },
             "/api/v1/submissions/{id}": {
                 "get": { "summary": "Status, progress (work_done of work estimate evaluations, progress_text and eta_seconds from the speed measured on this server, the queue place; while no evaluation worker runs, no_worker is true, eta_seconds null and progress_text says so), publication state, pre-flight report (red_flags, estimates_evaluated, estimated_seconds) and, once done, the scores per protocol; for its owner also `owner` with the download and action links",
                     "parameters": [id_param], "responses": { "200": { "description": "the submission" }, "404": { "description": "no such submission, or a private one of another account" } } },
@@ -130,6 +74,91 @@ fn paths() -> Value {
     });
     // One `json!` holding every path overflows the macro's recursion limit: the rest here.
     let more = json!({
+            "/api/v1/submissions": {
+                "get": { "summary": "The public finished submissions, newest first (see below)" },
+                "post": {
+                    "summary": "Upload result files (BOP'19 CSV, or BOP'22 2D JSON; one per dataset) for evaluation",
+                    "security": [{ "bearer": [] }],
+                    "requestBody": { "required": true, "content": { "multipart/form-data": { "schema": {
+                        "type": "object", "required": ["method", "file"],
+                        "properties": {
+                            "method": { "type": "string", "maxLength": 100 },
+                            "dataset": { "type": "string", "description": "default: the dataset of the file name METHOD_DATASET-SPLIT.csv; must agree with it" },
+                            "protocol": { "type": "string", "enum": ["bop19", "eccv18", "bop19,eccv18", "bop24", "bop22-det", "bop22-seg"], "description": "default: a CSV file is scored under bop19 and eccv18, its pre-flight warning about bop19's selection only (`bop19,eccv18` for both's); bop24: a CSV file scored for 6D detection (average precision on the images of the dataset's test_targets_bop24.json, the toolkit's cap of estimates per image; 400 naming the file when the dataset has none); for a .json file (BOP'22 2D results) the task its content shows: bop22-seg when an entry has a `segmentation`, else bop22-det (amodal boxes)" },
+                            "description": { "type": "string" },
+                            "paper_url": { "type": "string" },
+                            "code_url": { "type": "string" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both"] },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] },
+                            "objects": { "type": "string", "enum": ["seen", "unseen"] },
+                            "onboarding": { "type": "string", "enum": ["model-based", "model-free"] },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
+                            "visibility": { "type": "string", "enum": ["public", "private"], "description": "default: private (only its owner and the administrators see it; everyone else gets 404). public: published once evaluated, unless the pre-flight raises red flags (translations in metres, more than half of the targets without an estimate, estimates for objects the dataset lacks): then it stays private, `held`, until its owner confirms (POST .../visibility with confirm=true). Anything else is 400. For a file already submitted for this method (same dataset and protocols), the visibility given becomes that submission's; without the field it keeps its own" },
+                            "file": { "type": "array", "items": { "type": "string", "format": "binary" }, "maxItems": 20, "description": "one or several result files, one per dataset, or a .zip of them (unpacked, within the upload limit); each result file becomes a submission" }
+                        } } } } },
+                    "responses": {
+                        "202": { "description": "queued: {submissions: [{id, submission, preflight, url}]}, and with one file also its fields at the top level" },
+                        "401": { "description": "no valid API token (Authorization: Bearer TOKEN)" },
+                        "200": { "description": "every file was already submitted for this method (same dataset and protocols): the existing submissions, not evaluated again, with the visibility asked for if one was given" },
+                        "408": { "description": "the upload stalled: its body must keep delivering a minimum (by default 64 KiB every 20 s), however long the whole upload takes" },
+                        "400": { "description": "a missing or bad field" },
+                        "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
+                        "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
+                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it and when the next is allowed, as a UTC date and time): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
+                    }
+                }
+            },
+            "/api/v1/methods/{id}": {
+                "get": { "summary": "A method (with its owner's name: its team's for a team's method, also given as `team`) and its public submissions (a team's members see its private ones too)", "parameters": [id_param],
+                    "responses": { "200": { "description": "{method, submissions}" }, "404": { "description": "no such public method" } } },
+                "post": { "summary": "Change a method's details (its owner, any member of a team's method's team, or an administrator); fields left out keep their values, an empty one clears it",
+                    "security": [{ "bearer": [] }], "parameters": [id_param],
+                    "requestBody": { "required": true, "content": { "application/json": { "schema": {
+                        "type": "object",
+                        "properties": {
+                            "description": { "type": "string", "maxLength": 10000 },
+                            "authors": { "type": "string", "maxLength": 1000 },
+                            "year": { "type": ["integer", "string"], "description": "1900 to 2100, or empty" },
+                            "paper_url": { "type": "string", "description": "an http(s) link" },
+                            "code_url": { "type": "string", "description": "an http(s) link" },
+                            "training_data": { "type": "string", "enum": ["synthetic", "real", "both", ""] },
+                            "detection_modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the detection stage" },
+                            "modality": { "type": "string", "enum": ["rgb", "depth", "rgb-d", ""], "description": "input of the pose stage" },
+                            "refinement": { "type": "string", "maxLength": 1000 },
+                            "detections": { "type": "string", "maxLength": 1000, "description": "the detections the method starts from" },
+                            "model_scope": { "type": "string", "enum": ["all", "per-object", ""], "description": "one model for all objects or one per object" },
+                            "hardware": { "type": "string", "maxLength": 200, "description": "what the reported times were measured on" },
+                            "objects": { "type": "string", "enum": ["seen", "unseen", ""], "description": "seen: trained on images of the test objects; unseen: onboarded at test time" },
+                            "onboarding": { "type": "string", "enum": ["model-based", "model-free", ""], "description": "how the test objects are onboarded: from their 3D models or from reference images" }
+                        } } } } },
+                    "responses": { "200": { "description": "{method}: as stored" }, "400": { "description": "a field that does not parse" }, "401": { "description": "no valid API token" },
+                        "403": { "description": "the method is another account's" }, "404": { "description": "no such method, or another account's private one" } } }
+            },
+            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or task (bop24: ranked by bop24_mAP, every cell's `stats` its parts; bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
+                "parameters": [
+                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] } },
+                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
+                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
+                    { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
+                    { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } },
+                    { "name": "objects", "in": "query", "schema": { "type": "string", "enum": ["seen", "unseen"] }, "description": "only methods of this category, ranked among themselves; a method that does not say is left out" },
+                    { "name": "onboarding", "in": "query", "schema": { "type": "string", "enum": ["model-based", "model-free"] }, "description": "only methods of this category, ranked among themselves; a method that does not say is left out" },
+                    { "name": "group", "in": "query", "schema": { "type": "string" }, "description": "the group of datasets ranked over (GET /api/v1/groups); default: core, the core datasets" },
+                    { "name": "curves", "in": "query", "schema": { "type": "string" }, "description": "the page's query for the methods its charts overlay (method ids separated by commas, at most 5); checked here, the JSON is the same with or without it" }
+                ],
+                "responses": { "200": { "description": "{protocol, parameters, datasets, group, groups, core (the group's datasets served here), columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, ci95 ([low, high]: bootstrap 95 % interval of the average, from 1000 seeded resamplings of each dataset's images, replicate-wise means over the datasets), scores per dataset ({submission_id, score, ..., pinned, ci95}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "400": { "description": "an unknown sort, filter value or malformed curves" }, "404": { "description": "unknown protocol, dataset or group" } } } },
+            "/api/v1/groups": { "get": { "summary": "The groups of datasets a board ranks over (`?group=NAME`): the default group `core` (the core datasets) first, then the stored ones, each with the datasets it names and those served here",
+                "responses": { "200": { "description": "{groups: [{name, default, datasets, served}]}" } } } },
+            "/api/v1/admin/groups": { "post": { "summary": "Create a group of datasets, or replace the datasets of the group of that name; administrators only (audited). Datasets are folder names, served or not; the default group `core` takes served ones only (it sets the core datasets)",
+                "security": [{ "bearer": [] }],
+                "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["name", "datasets"], "properties": {
+                    "name": { "type": "string", "maxLength": 60, "description": "letters, digits, -, _ and ." },
+                    "datasets": { "type": "array", "items": { "type": "string" }, "minItems": 1, "maxItems": 100 } } } } } },
+                "responses": { "201": { "description": "created: {group, created: true}" }, "200": { "description": "replaced: {group, created: false}" }, "400": { "description": "a bad name or dataset name, no dataset, or `core` with a dataset not served" }, "404": { "description": "not an administrator" } } } },
+            "/api/v1/admin/groups/{name}": { "delete": { "summary": "Delete a group of datasets (not the default one); administrators only (audited)",
+                "security": [{ "bearer": [] }],
+                "parameters": [{ "name": "name", "in": "path", "required": true, "schema": { "type": "string" } }],
+                "responses": { "200": { "description": "{ok, deleted}" }, "400": { "description": "the default group" }, "404": { "description": "no such group, or not an administrator" } } } },
             "/api/v1/compare": { "get": { "summary": "Two finished submissions on one dataset side by side: scores per protocol, per object and per visibility bin, and target by target (scene, image, object) where one found more instances than the other, with both errors and paired counts. Each must be visible to the caller",
                 "parameters": [
                     { "name": "a", "in": "query", "required": true, "schema": { "type": "integer" } },
@@ -165,16 +194,6 @@ fn paths() -> Value {
                 "parameters": [{ "name": "dataset", "in": "query", "required": true, "schema": { "type": "string" }, "description": "a served dataset's name" }],
                 "responses": { "200": { "description": "{dataset, limit (null: no limit), window_secs, used, left (null: no limit), next_at (epoch ms, when none is left), next_at_utc (the same as \"2026-12-04 17:20 UTC\"), summary (in words, as the upload form and the CLI say it)}" },
                     "400": { "description": "no or an unknown dataset (the message lists the served ones)" }, "401": { "description": "no valid API token or session" } } } },
-            "/api/v1/leaderboards/{protocol}": { "get": { "summary": "The leaderboard of a protocol or task (bop24: ranked by bop24_mAP, every cell's `stats` its parts; bop22-det, bop22-seg: ranked by AP, the average over the core datasets being AP_C; with a dataset, every cell has the twelve AP/AR `stats`)",
-                "parameters": [
-                    { "name": "protocol", "in": "path", "required": true, "schema": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] } },
-                    { "name": "dataset", "in": "query", "schema": { "type": "string" }, "description": "one dataset, with per-object scores" },
-                    { "name": "sort", "in": "query", "schema": { "type": "string" }, "description": "average (default), time, method, or a dataset name" },
-                    { "name": "training", "in": "query", "schema": { "type": "string", "enum": ["synthetic", "real", "both"] } },
-                    { "name": "modality", "in": "query", "schema": { "type": "string", "enum": ["rgb", "depth", "rgb-d"] } },
-                    { "name": "curves", "in": "query", "schema": { "type": "string" }, "description": "the page's query for the methods its charts overlay (method ids separated by commas, at most 5); checked here, the JSON is the same with or without it" }
-                ],
-                "responses": { "200": { "description": "{protocol, parameters, datasets, core, columns, sorted_by, rows}. Each row: rank (null when the method lacks a score on a dataset shown; equal scores at the precision shown share a rank), method, method_id, owner, average (over the columns; null when unranked), mean (over the columns covered), covered, ci95 ([low, high]: bootstrap 95 % interval of the average, from 1000 seeded resamplings of each dataset's images, replicate-wise means over the datasets), scores per dataset ({submission_id, score, ..., pinned, ci95}), time (mean over the same datasets, per image for bop19 and per target for eccv18), hardware. Rows: ranked by rank, then the unranked by coverage and mean; `sort` reorders them and keeps each rank" }, "400": { "description": "an unknown sort, filter value or malformed curves" }, "404": { "description": "unknown protocol or dataset" } } } },
             "/api/v1/submissions/{id}/targets/{scene_id}/{im_id}/{obj_id}.png": { "get": { "summary": "A target seen through a submission: the test image (RGB, else gray, else the depth image) with the object's ground-truth silhouettes (green tint, green outline) and the silhouettes of the submission's estimates its evaluation considered (the first n_top by score; magenta tint, magenta outline, drawn on top), rendered by the evaluator's renderer",
                 "parameters": [id_param,
                     { "name": "scene_id", "in": "path", "required": true, "schema": { "type": "integer" } },

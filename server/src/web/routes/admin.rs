@@ -1,12 +1,12 @@
-//! What administrators do: hide, delete and re-run submissions, add and retire datasets, from
-//! the API and from buttons on the pages. Every action is written to the audit log. To anyone
+//! What administrators do: hide, delete and re-run submissions, add and retire datasets, save
+//! and delete dataset groups, from the API and from buttons on the pages. Every action is written to the audit log. To anyone
 //! else these routes answer as if they did not exist, whatever the method and body.
 
 use axum::extract::{Form, FromRequestParts, Path, Request, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Redirect, Response};
-use axum::routing::{get, post};
+use axum::routing::{delete, get, post};
 use axum::{Json, Router};
 use serde::Deserialize;
 use serde_json::json;
@@ -14,7 +14,7 @@ use serde_json::json;
 use crate::app::AppState;
 use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
-use crate::service::moderation;
+use crate::service::{groups, moderation};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
 use crate::web::auth::Viewer;
@@ -32,6 +32,8 @@ pub fn router(app: AppState) -> Router<AppState> {
             post(api_retire_dataset),
         )
         .route("/api/v1/admin/datasets/{name}/core", post(api_set_core))
+        .route("/api/v1/admin/groups", post(api_save_group))
+        .route("/api/v1/admin/groups/{name}", delete(api_delete_group))
         .route("/api/v1/admin/audit", get(api_audit))
         .route("/api/v1/admin/snapshots", post(api_take_snapshot))
         .route(
@@ -41,6 +43,8 @@ pub fn router(app: AppState) -> Router<AppState> {
         .route("/admin/datasets", post(page_add_dataset))
         .route("/admin/datasets/{name}/retire", post(page_retire_dataset))
         .route("/admin/datasets/{name}/core", post(page_set_core))
+        .route("/admin/groups", post(page_save_group))
+        .route("/admin/groups/{name}/delete", post(page_delete_group))
         .layer(axum::middleware::from_fn_with_state(app, admins_only))
 }
 
@@ -205,6 +209,77 @@ async fn page_set_core(
     };
     moderation::set_core(&app, actor, &name, core).await?;
     Ok(Redirect::to("/datasets").into_response())
+}
+
+#[derive(Deserialize)]
+struct GroupBody {
+    name: String,
+    /// Dataset folder names, served or not.
+    datasets: Vec<String>,
+}
+
+/// Creates a group (201) or replaces the members of the group of that name (200).
+async fn api_save_group(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Json(g): Json<GroupBody>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    let (group, created) = groups::save(&app, actor, &g.name, &g.datasets).await?;
+    let status = if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
+    Ok((status, Json(json!({ "group": group, "created": created }))).into_response())
+}
+
+async fn api_delete_group(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+) -> AppResult<Json<serde_json::Value>> {
+    let actor = admin(&viewer)?;
+    groups::delete(&app, actor, &name).await?;
+    Ok(Json(json!({ "ok": true, "deleted": name })))
+}
+
+#[derive(Deserialize)]
+struct GroupForm {
+    name: String,
+    /// Dataset folder names separated by spaces or commas.
+    datasets: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn page_save_group(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Form(f): Form<GroupForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    let datasets: Vec<String> = f
+        .datasets
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|d| !d.is_empty())
+        .map(str::to_string)
+        .collect();
+    groups::save(&app, actor, &f.name, &datasets).await?;
+    Ok(Redirect::to("/groups").into_response())
+}
+
+async fn page_delete_group(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(name): Path<String>,
+    Form(f): Form<CsrfForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    groups::delete(&app, actor, &name).await?;
+    Ok(Redirect::to("/groups").into_response())
 }
 
 async fn api_audit(

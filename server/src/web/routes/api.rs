@@ -18,7 +18,7 @@ use crate::board_cache::Format;
 use crate::domain::{BoardProtocol, MethodForm, MethodId, SubmissionId, Task, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Accepted, quota, submit};
-use crate::service::{catalogue, downloads, methods, publishing};
+use crate::service::{catalogue, downloads, groups, methods, publishing};
 use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
@@ -30,6 +30,7 @@ use crate::web::views;
 pub fn router(max_upload: u64) -> Router<AppState> {
     Router::new()
         .route("/api/v1/datasets", get(datasets))
+        .route("/api/v1/groups", get(dataset_groups))
         .route("/api/v1/methods", get(methods))
         .route("/api/v1/methods/{id}", get(method).post(edit_method))
         .route("/api/v1/methods/{id}/reveal", post(reveal_method))
@@ -65,6 +66,10 @@ async fn datasets(State(app): State<AppState>) -> AppResult<Json<serde_json::Val
     Ok(Json(
         json!({ "datasets": catalogue::datasets(&app).await? }),
     ))
+}
+
+async fn dataset_groups(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {
+    Ok(Json(json!({ "groups": groups::all(&app).await? })))
 }
 
 async fn methods(State(app): State<AppState>) -> AppResult<Json<serde_json::Value>> {

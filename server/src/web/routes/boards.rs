@@ -25,6 +25,9 @@ pub fn key(format: Format, protocol: BoardProtocol, q: &BoardFilter) -> BoardKey
             q.training.clone(),
             q.modality.clone(),
             q.curves.clone(),
+            q.objects.clone(),
+            q.onboarding.clone(),
+            q.group.clone(),
         ],
     }
 }

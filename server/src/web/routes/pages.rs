@@ -17,10 +17,11 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{
-    BoardProtocol, FileKind, MethodForm, MethodId, Modality, ModelScope, SnapshotId, SubmissionId,
-    TrainingData, UploadTask, Visibility,
+    BoardProtocol, DEFAULT_GROUP, FileKind, MethodForm, MethodId, Modality, ModelScope, Objects,
+    Onboarding, SnapshotId, SubmissionId, TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
+use crate::service::groups::{self, Group};
 use crate::service::leaderboard::Standing;
 use crate::service::submission_details::Owned;
 use crate::service::submissions;
@@ -42,6 +43,7 @@ pub fn router(max_upload: u64) -> Router<AppState> {
         .route("/", get(home))
         .route("/leaderboards/{protocol}", get(leaderboard))
         .route("/datasets", get(datasets))
+        .route("/groups", get(dataset_groups))
         .route("/methods/{id}", get(method).post(edit_method))
         .route("/methods/{id}/reveal", post(reveal_method))
         .route("/submissions/{id}", get(submission))
@@ -201,6 +203,12 @@ impl LeaderboardPage {
         }
     }
 
+    /// The `group` of the query choosing group `name`: none for the default group, so that
+    /// its links stay those of the board without a group.
+    pub(crate) fn group_value<'a>(&self, name: &'a str) -> &'a str {
+        if name == DEFAULT_GROUP { "" } else { name }
+    }
+
     /// This protocol's board of dataset `name` (empty: all datasets).
     pub(crate) fn dataset_href(&self, name: &str) -> String {
         match self.snapshot {
@@ -327,6 +335,25 @@ async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<Data
 }
 
 #[derive(Template, WebTemplate)]
+#[template(path = "groups.html")]
+struct GroupsPage {
+    groups: Vec<Group>,
+    /// For an administrator's browser: the CSRF token of the save and delete forms.
+    admin_csrf: Option<String>,
+}
+
+async fn dataset_groups(State(app): State<AppState>, viewer: Viewer) -> AppResult<GroupsPage> {
+    Ok(GroupsPage {
+        groups: groups::all(&app).await?,
+        admin_csrf: viewer
+            .session
+            .as_ref()
+            .filter(|s| s.user.is_admin)
+            .map(|s| s.csrf_token.clone()),
+    })
+}
+
+#[derive(Template, WebTemplate)]
 #[template(path = "method.html")]
 struct MethodPage {
     method: MethodRow,
@@ -341,6 +368,8 @@ struct MethodPage {
     model_scopes: &'static [ModelScope],
     modalities: &'static [Modality],
     training: &'static [TrainingData],
+    onboardings: &'static [Onboarding],
+    object_kinds: &'static [Objects],
 }
 
 impl MethodPage {
@@ -385,6 +414,8 @@ async fn method(
         model_scopes: ModelScope::ALL,
         modalities: Modality::ALL,
         training: TrainingData::ALL,
+        onboardings: Onboarding::ALL,
+        object_kinds: Objects::ALL,
     })
 }
 

@@ -38,6 +38,8 @@ pub struct Fields {
     pub code_url: String,
     pub training_data: String,
     pub modality: String,
+    pub onboarding: String,
+    pub objects: String,
     pub hardware: String,
     /// `true`: the method is under double-blind review; empty leaves it as it is.
     pub anonymous: String,
@@ -93,6 +95,8 @@ impl Fields {
                 "" => None,
                 sent => Some(flag("anonymous", sent)?),
             },
+            onboarding: optional(&self.onboarding)?,
+            objects: optional(&self.objects)?,
         };
         if files.is_empty() {
             return Err(AppError::BadRequest(
@@ -149,6 +153,8 @@ pub async fn read_upload(
             "code_url" => &mut fields.code_url,
             "training_data" => &mut fields.training_data,
             "modality" => &mut fields.modality,
+            "onboarding" => &mut fields.onboarding,
+            "objects" => &mut fields.objects,
             "hardware" => &mut fields.hardware,
             "anonymous" => &mut fields.anonymous,
             "visibility" => &mut fields.visibility,
