@@ -13,9 +13,10 @@
 //! The clients speak HTTP/1.1 by hand on one thread: a general client (reqwest) would take a
 //! larger share of the two cores the server has to share with it, and measure itself.
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -34,17 +35,10 @@ use server::store::submissions::{Created, NewSubmission};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader as AsyncBufReader};
 use tokio::net::TcpStream;
 
+use common::{PgDb, Res, Server, env_num};
+
 const BOARD_SUBMISSIONS: usize = 200;
 const LARGE: &str = "synthlarge";
-
-type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
-
-fn env_num(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
 
 fn main() -> Res<()> {
     // `cargo bench` passes `--bench`; a plain `cargo test` of the benches passes nothing and
@@ -202,63 +196,6 @@ struct Measured {
     p99_ms: f64,
 }
 
-/// A fresh PostgreSQL database for one run, dropped afterwards.
-struct PgDb {
-    admin: String,
-    name: String,
-    url: String,
-}
-
-impl PgDb {
-    fn create(admin: &str, label: &str) -> Res<PgDb> {
-        let name = format!("poseboard_bench_{label}_{}", std::process::id());
-        pg_exec(admin, &format!("DROP DATABASE IF EXISTS {name}"))?;
-        pg_exec(admin, &format!("CREATE DATABASE {name}"))?;
-        let base = admin.rsplit_once('/').map_or(admin, |(b, _)| b);
-        Ok(PgDb {
-            admin: admin.to_string(),
-            url: format!("{base}/{name}"),
-            name,
-        })
-    }
-}
-
-impl Drop for PgDb {
-    fn drop(&mut self) {
-        let _ = pg_exec(
-            &self.admin,
-            &format!("DROP DATABASE IF EXISTS {} WITH (FORCE)", self.name),
-        );
-    }
-}
-
-fn pg_exec(url: &str, sql: &str) -> Res<()> {
-    tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?
-        .block_on(async {
-            use sqlx::Connection;
-            let mut conn = sqlx::PgConnection::connect(url).await?;
-            sqlx::query(sqlx::AssertSqlSafe(sql.to_string()))
-                .execute(&mut conn)
-                .await?;
-            Ok(())
-        })
-}
-
-/// A running server, killed when dropped.
-struct Server {
-    child: Child,
-    addr: std::net::SocketAddr,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 impl Run {
     fn measure(
         &self,
@@ -384,23 +321,13 @@ impl Run {
         .args(&self.flags)
         .env("RUST_LOG", "warn")
         .env_remove("DATABASE_URL")
-        .stdout(Stdio::piped())
         .stderr(Stdio::from(std::fs::File::create(
             self.work.join("server.log"),
         )?));
         if let Some(url) = database_url {
             cmd.env("DATABASE_URL", url);
         }
-        let mut child = cmd.spawn()?;
-        let stdout = child.stdout.take().ok_or("stdout")?;
-        let mut lines = BufReader::new(stdout).lines();
-        let line = lines.next().ok_or("the server printed nothing")??;
-        std::thread::spawn(move || for _ in lines {});
-        let addr = line
-            .strip_prefix("poseboard listening on http://")
-            .ok_or_else(|| format!("unexpected first line: {line}"))?
-            .parse()?;
-        Ok(Server { child, addr })
+        Server::spawn(&mut cmd)
     }
 
     fn phase(
