@@ -585,10 +585,6 @@ impl BoardProtocol {
     pub fn named(name: &str) -> Option<BoardProtocol> {
         BoardProtocol::ALL.into_iter().find(|b| b.as_str() == name)
     }
-
-    pub fn is_coco(self) -> bool {
-        matches!(self, BoardProtocol::Coco(_))
-    }
 }
 
 impl Serialize for BoardProtocol {

@@ -241,7 +241,7 @@ pub async fn board(app: &App, protocol: BoardProtocol, filter: &BoardFilter) -> 
     let replicates = if needed.is_empty() {
         BTreeMap::new()
     } else {
-        app.store.replicates(&needed, protocol.is_coco()).await?
+        app.store.replicates(&needed, protocol).await?
     };
     ranking::intervals(&mut rows, &columns, &replicates);
     ranking::rank(&mut rows);
@@ -455,6 +455,8 @@ fn bop24_entry(e: &Bop24BoardEntry) -> Entry {
             ])
             .filter(|(_, v)| v.is_finite())
             .collect(),
+        ci95: e.ci95,
+        score_id: Some(e.score_id),
         ..headline(&e.head, r.bop24_map, e.time_avg)
     };
     entry(e.head.clone(), cell, bop24_objects(r))

@@ -142,6 +142,8 @@ mod tests {
             detections: String::new(),
             model_scope: None,
             hardware: String::new(),
+            onboarding: None,
+            objects: None,
             anonymous: true,
             created_at: 0,
         };

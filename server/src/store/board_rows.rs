@@ -71,6 +71,14 @@ pub(super) fn head(row: &AnyRow) -> StoreResult<EntryHead> {
     })
 }
 
+/// A stored bootstrap 95 % interval (`ci_low`, `ci_high`), where one was drawn.
+pub(super) fn ci95(row: &AnyRow) -> StoreResult<Option<[f64; 2]>> {
+    Ok(match (row.try_get("ci_low")?, row.try_get("ci_high")?) {
+        (Some(low), Some(high)) => Some([low, high]),
+        _ => None,
+    })
+}
+
 /// An evaluator report kept whole as JSON in `report_json`, read back typed.
 pub(super) fn report_json<T: DeserializeOwned>(row: &AnyRow) -> StoreResult<T> {
     let json: String = row.try_get("report_json")?;

@@ -8,7 +8,7 @@ use evaluator::detection::DetectionReport;
 use sqlx::Row;
 
 use super::board_rows::{
-    EntryHead, HEAD_COLUMNS, HEAD_JOINS, ScoreTable, Whose, head, report_json,
+    EntryHead, HEAD_COLUMNS, HEAD_JOINS, ScoreTable, Whose, ci95, head, report_json,
 };
 use super::{Store, StoreResult};
 use crate::domain::{DatasetId, MethodId, SubmissionId};
@@ -17,6 +17,10 @@ use crate::domain::{DatasetId, MethodId, SubmissionId};
 #[derive(Clone, Debug, PartialEq)]
 pub struct Bop24BoardEntry {
     pub head: EntryHead,
+    /// The stored score (whose bootstrap replicates an average's interval is made of).
+    pub score_id: i64,
+    /// The bootstrap 95 % interval of bop24_mAP, for scores stored with replicates.
+    pub ci95: Option<[f64; 2]>,
     /// Seconds per image; `None` when the file gave no time.
     pub time_avg: Option<f64>,
     pub report: DetectionReport,
@@ -75,7 +79,8 @@ impl Store {
         dataset_id: Option<DatasetId>,
     ) -> StoreResult<Vec<Bop24BoardEntry>> {
         let sql = format!(
-            "SELECT b.submission_id, b.time_avg, b.report_json, {HEAD_COLUMNS} \
+            "SELECT b.id AS score_id, b.submission_id, b.time_avg, b.report_json, b.ci_low, \
+             b.ci_high, {HEAD_COLUMNS} \
              FROM bop24_scores b JOIN submissions s ON s.id = b.submission_id {HEAD_JOINS} \
              WHERE s.status = 'done' AND s.public = 1 AND s.hidden = 0 \
              AND d.retired = 0 AND ($1 < 0 OR s.dataset_id = $1) AND s.id = {ENTRY_SQL} \
@@ -89,6 +94,8 @@ impl Store {
             .map(|r| {
                 Ok(Bop24BoardEntry {
                     head: head(r)?,
+                    score_id: r.try_get("score_id")?,
+                    ci95: ci95(r)?,
                     time_avg: r.try_get("time_avg")?,
                     report: report_json(r)?,
                 })

@@ -10,7 +10,7 @@ use sqlx::Row;
 use sqlx::any::AnyRow;
 
 use super::board_rows::{
-    EntryHead, HEAD_COLUMNS, HEAD_JOINS, ScoreTable, Whose, head, report_json,
+    EntryHead, HEAD_COLUMNS, HEAD_JOINS, ScoreTable, Whose, ci95, head, report_json,
 };
 use super::scores::{RecordParameters, ScoreRecord, stored_parameters};
 use super::{Store, StoreResult, parse_column};
@@ -47,13 +47,6 @@ fn record(row: &AnyRow) -> StoreResult<ScoreRecord> {
         }),
         dataset_hash: row.try_get("dataset_hash")?,
         file_sha256: row.try_get("file_sha256")?,
-    })
-}
-
-fn ci95(row: &AnyRow) -> StoreResult<Option<[f64; 2]>> {
-    Ok(match (row.try_get("ci_low")?, row.try_get("ci_high")?) {
-        (Some(low), Some(high)) => Some([low, high]),
-        _ => None,
     })
 }
 

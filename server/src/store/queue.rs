@@ -219,6 +219,7 @@ impl Store {
         id: SubmissionId,
         worker: &str,
         report: &DetectionReport,
+        replicates: &[f64],
         eval_ms: i64,
     ) -> StoreResult<bool> {
         let mut tx = self.write_transaction().await?;
@@ -240,8 +241,8 @@ impl Store {
         let number = |v: f64| Some(v).filter(|v| v.is_finite());
         sqlx::query(
             "INSERT INTO bop24_scores (submission_id, map, map_mssd, map_mssd_mm, map_mspd, \
-             time_avg, estimates_evaluated, report_json, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+             time_avg, estimates_evaluated, report_json, created_at, ci_low, ci_high, replicates) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
         )
         // Each number is NULL or not; a cached statement would keep the first one's types.
         .persistent(false)
@@ -255,6 +256,9 @@ impl Store {
         .bind(work)
         .bind(json)
         .bind(now)
+        .bind(report.bootstrap.as_ref().map(|b| b.ci95[0]))
+        .bind(report.bootstrap.as_ref().map(|b| b.ci95[1]))
+        .bind(Some(replicates_bytes(replicates)).filter(|b| !b.is_empty()))
         .execute(&mut *tx)
         .await?;
         board_version::bump(&mut tx).await?;

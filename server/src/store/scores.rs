@@ -272,17 +272,23 @@ impl Store {
         Ok(entries)
     }
 
-    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id: of
-    /// the 6D scores, or with `coco` of the 2D tasks' (whose ids are their own).
+    /// The bootstrap replicates of the scores `ids` (those stored with some), by score id, of
+    /// the table `protocol`'s board ranks (each table's ids are its own).
     pub async fn replicates(
         &self,
         ids: &[i64],
-        coco: bool,
+        protocol: BoardProtocol,
     ) -> StoreResult<BTreeMap<i64, Vec<f64>>> {
-        let select = if coco {
-            "SELECT id, replicates FROM coco_scores WHERE replicates IS NOT NULL AND id IN"
-        } else {
-            "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN"
+        let select = match protocol {
+            BoardProtocol::Pose(_) => {
+                "SELECT id, replicates FROM scores WHERE replicates IS NOT NULL AND id IN"
+            }
+            BoardProtocol::Coco(_) => {
+                "SELECT id, replicates FROM coco_scores WHERE replicates IS NOT NULL AND id IN"
+            }
+            BoardProtocol::Bop24 => {
+                "SELECT id, replicates FROM bop24_scores WHERE replicates IS NOT NULL AND id IN"
+            }
         };
         let mut out = BTreeMap::new();
         for r in fetch_in(&self.pool, select, ids).await? {

@@ -48,6 +48,8 @@ pub(super) enum Outcome {
     Coco(Box<FinishedCoco>),
     Bop24 {
         report: Box<DetectionReport>,
+        /// The bootstrap replicates of its bop24_mAP (empty when none was drawn).
+        replicates: Vec<f64>,
         eval_ms: i64,
     },
 }
@@ -240,10 +242,16 @@ async fn evaluate_bop24(
             results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
         started.fetch_add(1, Ordering::Relaxed);
         let cap = detection::default_max_estimates_per_image(&dataset.name);
-        let report = detection::evaluate(&dataset, &results, cap, counter.as_ref(), &cancel)
-            .map_err(|e| ended(e, &taken))?;
+        let mut evaluation =
+            detection::evaluation(&dataset, &results, cap, counter.as_ref(), &cancel)
+                .map_err(|e| ended(e, &taken))?;
+        let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
+        let replicates = evaluation
+            .bootstrap(seed, bootstrap::REPLICATES)
+            .map_or_else(Vec::new, |b| b.replicates);
         Ok(Outcome::Bop24 {
-            report: Box::new(report),
+            report: Box::new(evaluation.report),
+            replicates,
             eval_ms: elapsed_ms(clock),
         })
     })

@@ -64,9 +64,14 @@ impl Worker {
                 })
                 .await
             }
-            Ok(Outcome::Bop24 { report, eval_ms }) => {
+            Ok(Outcome::Bop24 {
+                report,
+                replicates,
+                eval_ms,
+            }) => {
                 retry::persist(shutdown, "store the scores", None, || {
-                    app.store.finish_bop24(id, worker, &report, eval_ms)
+                    app.store
+                        .finish_bop24(id, worker, &report, &replicates, eval_ms)
                 })
                 .await
             }

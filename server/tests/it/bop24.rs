@@ -28,6 +28,30 @@ fn scored(server: &common::Server, method: &str, file: &Path) -> Value {
     report
 }
 
+/// The interval the evaluator draws for `file` on the bop24 dataset at `root`, as the worker
+/// must.
+fn expected_interval(root: &Path, file: &Path) -> [f64; 2] {
+    let options = evaluator::dataset::DatasetOptions {
+        targets_file: "test_targets_bop24.json".into(),
+        ..Default::default()
+    };
+    let dataset = evaluator::Dataset::load_with(root, &options).expect("loads");
+    let results = evaluator::results::load_results(file).expect("parses");
+    let mut evaluation = evaluator::detection::evaluation(
+        &dataset,
+        &results,
+        100,
+        &evaluator::NoProgress,
+        &std::sync::atomic::AtomicBool::new(false),
+    )
+    .expect("evaluates");
+    let seed = evaluator::bootstrap::dataset_seed("synthA");
+    let b = evaluation
+        .bootstrap(seed, evaluator::bootstrap::REPLICATES)
+        .expect("replicates");
+    b.ci95()
+}
+
 fn bop24_service(kind: Db) {
     let dir = tempfile::tempdir().expect("tmp");
     let root = datasets(dir.path());
@@ -107,6 +131,14 @@ fn bop24_service(kind: Db) {
         assert_eq!(cell["stats"][key], noisy[key], "{key}");
     }
     assert_eq!(cell["time"], noisy["bop24_average_time_per_image"]);
+    // Its interval is the evaluator's bootstrap of bop24_mAP, drawn as every board's is.
+    let ci: Vec<f64> = serde_json::from_value(cell["ci95"].clone()).expect("ci95");
+    assert_eq!(
+        ci,
+        expected_interval(&root.join("synthA"), &result_file("noisy"))
+    );
+    assert_eq!(noisy["bootstrap"]["ci95"], cell["ci95"]);
+    assert_eq!(noisy["bootstrap"]["replicates"], 1000);
     let objects = row["objects"].as_object().expect("per-object AP");
     let counted = noisy["errors"][0]["objects"].as_array().expect("objects");
     assert_eq!(objects.len(), counted.len(), "{row}");

@@ -9,8 +9,8 @@ use crate::common::{Db, TestDb, both_databases, fixtures};
 use evaluator::protocol::{Protocol, ProtocolName};
 use evaluator::{Dataset, NoProgress, evaluate, results::load_results};
 use server::domain::{
-    DatasetId, DatasetName, GroupName, Hardware, MethodDetails, MethodName, Modality, SubmissionId,
-    Task, TeamName, TokenLabel, UserId, UserName, Visibility,
+    BoardProtocol, DatasetId, DatasetName, GroupName, Hardware, MethodDetails, MethodName,
+    Modality, SubmissionId, Task, TeamName, TokenLabel, UserId, UserName, Visibility,
 };
 use server::preflight::Preflight;
 use server::store::accounts::Counter;
@@ -456,8 +456,16 @@ fn bop24_report(case: &str) -> evaluator::detection::DetectionReport {
 fn bop24_scores(kind: Db) {
     let dir = tempfile::tempdir().unwrap();
     let db = TestDb::new(kind, "store_bop24");
-    let (exact, noisy) = (bop24_report("gtexact"), bop24_report("noisy"));
+    let (exact, mut noisy) = (bop24_report("gtexact"), bop24_report("noisy"));
+    // The noisy file's interval and replicates, as the worker stores a drawn bootstrap.
+    let drawn = [0.25, 0.5, 0.75];
+    noisy.bootstrap = Some(evaluator::bootstrap::BootstrapSummary {
+        seed: 1,
+        replicates: drawn.len(),
+        ci95: [0.26, 0.74],
+    });
     let mut nothing = noisy.clone();
+    nothing.bootstrap = None;
     for v in [
         &mut nothing.bop24_map,
         &mut nothing.bop24_map_mssd,
@@ -493,10 +501,30 @@ fn bop24_scores(kind: Db) {
                 .unwrap()
                 .expect("a job");
             assert_eq!(job.id, id);
-            assert!(!store.finish_bop24(id, "w2", report, 10).await.unwrap());
-            assert!(store.finish_bop24(id, "w1", report, 10).await.unwrap());
+            let replicates: &[f64] = if report.bootstrap.is_some() {
+                &drawn
+            } else {
+                &[]
+            };
+            assert!(
+                !store
+                    .finish_bop24(id, "w2", report, replicates, 10)
+                    .await
+                    .unwrap()
+            );
+            assert!(
+                store
+                    .finish_bop24(id, "w1", report, replicates, 10)
+                    .await
+                    .unwrap()
+            );
             // Finishing again (its first answer lost) is no second row.
-            assert!(store.finish_bop24(id, "w1", report, 10).await.unwrap());
+            assert!(
+                store
+                    .finish_bop24(id, "w1", report, replicates, 10)
+                    .await
+                    .unwrap()
+            );
             let done = store.submission(id).await.unwrap().unwrap();
             assert_eq!(done.status, Status::Done);
             assert_eq!(done.work, report.estimates_evaluated as i64);
@@ -528,6 +556,16 @@ fn bop24_scores(kind: Db) {
             "exact, noisy, then the one that counted nothing"
         );
         assert!(exact.bop24_map > noisy.bop24_map);
+        // The interval and the replicates an average's interval is made of.
+        assert_eq!(board[1].ci95, Some([0.26, 0.74]));
+        assert_eq!((board[0].ci95, board[2].ci95), (None, None));
+        let ids_of_scores: Vec<i64> = board.iter().map(|e| e.score_id).collect();
+        let stored = store
+            .replicates(&ids_of_scores, BoardProtocol::Bop24)
+            .await
+            .unwrap();
+        assert_eq!(stored.len(), 1);
+        assert_eq!(stored[&board[1].score_id], drawn);
         assert_eq!(board[1].report, noisy);
         assert_eq!(
             board[0].time_avg,
