@@ -209,6 +209,17 @@ async fn upload_form(c: &Client, base: &str, method: &str, file: &Path, publish:
         .select_by_value("bop19")
         .await
         .expect("protocol");
+    // Its categories, so that a filtered board has rows to show.
+    select("objects")
+        .await
+        .select_by_value("unseen")
+        .await
+        .expect("objects");
+    select("onboarding")
+        .await
+        .select_by_value("model-based")
+        .await
+        .expect("onboarding");
     let publish_box = css(c, "form.submit input[name=\"publish\"]").await;
     let ticked = publish_box.prop("checked").await.expect("checked?");
     assert_eq!(
@@ -707,6 +718,12 @@ fn pages_work_in_a_real_browser() {
             ("account", format!("{base}/account")),
             ("submit", format!("{base}/submit")),
             ("api", format!("{base}/docs/api")),
+            ("recent", format!("{base}/submissions")),
+            (
+                "filtered-board",
+                format!("{base}/leaderboards/bop19?objects=unseen&onboarding=model-based"),
+            ),
+            ("groups", format!("{base}/groups")),
         ];
         for (width, kind) in [(DESKTOP, "desktop"), (PHONE, "phone")] {
             page_width(&c, width).await;
