@@ -211,20 +211,8 @@ mod tests {
 
     fn dataset(name: &str, core: Option<bool>) -> DatasetRow {
         DatasetRow {
-            id: crate::domain::DatasetId::new(0),
-            name: name.to_string(),
-            path: String::new(),
-            objects_count: 0,
-            scenes_count: 0,
-            images_count: 0,
-            targets_count: 0,
-            instances_count: 0,
-            image_width: 0,
-            image_height: 0,
-            added_at: 0,
-            retired: false,
-            content_hash: None,
             core,
+            ..DatasetRow::named(crate::domain::DatasetId::new(0), name)
         }
     }
 

@@ -327,22 +327,7 @@ mod tests {
     use super::*;
 
     fn dataset(id: i64, name: &str) -> DatasetRow {
-        DatasetRow {
-            id: DatasetId::new(id),
-            name: name.to_string(),
-            path: String::new(),
-            objects_count: 0,
-            scenes_count: 0,
-            images_count: 0,
-            targets_count: 0,
-            instances_count: 0,
-            image_width: 0,
-            image_height: 0,
-            added_at: 0,
-            retired: false,
-            content_hash: None,
-            core: None,
-        }
+        DatasetRow::named(DatasetId::new(id), name)
     }
 
     /// The datasets of the tables below: `lmo` (1), `tless` (2), `ycbv` (3).

@@ -35,6 +35,29 @@ pub struct DatasetRow {
     pub core: Option<bool>,
 }
 
+#[cfg(test)]
+impl DatasetRow {
+    /// A registered dataset with nothing counted, for the service's unit tests.
+    pub(crate) fn named(id: DatasetId, name: &str) -> DatasetRow {
+        DatasetRow {
+            id,
+            name: name.to_string(),
+            path: String::new(),
+            objects_count: 0,
+            scenes_count: 0,
+            images_count: 0,
+            targets_count: 0,
+            instances_count: 0,
+            image_width: 0,
+            image_height: 0,
+            added_at: 0,
+            retired: false,
+            content_hash: None,
+            core: None,
+        }
+    }
+}
+
 fn dataset(row: &AnyRow) -> StoreResult<DatasetRow> {
     Ok(DatasetRow {
         id: row.try_get("id")?,
