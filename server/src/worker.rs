@@ -13,12 +13,14 @@
 //!
 //! Split by concern: `pool` starts the workers and runs the claim loop, `job` runs one
 //! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding
-//! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says.
+//! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says;
+//! `preparation` prepares the datasets those evaluations read in the background.
 
 mod evaluation;
 mod job;
 mod lease;
 mod pool;
+mod preparation;
 mod rescoring;
 mod retry;
 
