@@ -1174,6 +1174,25 @@ mod tests {
     }
 
     #[test]
+    fn a_tiff_declaring_more_values_than_it_holds_is_refused_before_decoding() {
+        // Found by fuzzing: this 506-byte file made the tiff crate allocate 153 MB.
+        let input = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fuzz/regressions/depth_tiff/oom-328a1de69a01afa6c9e31eb6a5f0893754dfd35c");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("000000.tif");
+        std::fs::copy(input, &path).unwrap();
+        let Err(e) = DepthFile::open(path, DepthFormat::Tiff, 1.0) else {
+            panic!("the file is refused");
+        };
+        assert!(e.to_string().contains("invalid TIFF: tag"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("more than the file's 506 bytes hold"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn depth_tiff_as_itodd_publishes_it() {
         use tiff::encoder::{Compression, DeflateLevel};
         let expected = reference().load_depth(1, 0).unwrap();
