@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Every check poseboard has, the way CI runs them: formatting, lints, the Rust tests (against
 # real SQLite and PostgreSQL: POSEBOARD_TEST_POSTGRES, default
-# postgres://postgres@127.0.0.1:5432/test), and the Python package built, installed in a fresh
-# virtual environment and tested against the same reference scores.
+# postgres://postgres@127.0.0.1:5432/test), the Python package built, installed in a fresh
+# virtual environment and tested against the same reference scores, and every fuzz target run
+# for 20 seconds (fuzz/smoke.sh: a crash, timeout or allocation past its bound fails).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,3 +21,5 @@ cargo test --workspace --locked
 unset RUSTC_WORKSPACE_WRAPPER CLIPPY_ARGS
 
 POSEBOARD_BIN="$PWD/target/debug/poseboard" bash python/tests/run.sh
+
+bash fuzz/smoke.sh

@@ -417,12 +417,8 @@ impl Dataset {
         others.sort();
         candidates.extend(others);
         for path in candidates {
-            if let RawCameraSize {
-                width: Some(w),
-                height: Some(h),
-            } = read_json(&path)?
-            {
-                return Ok((w, h));
+            if let Some(size) = parse_camera_size(&read(&path)?, &path)? {
+                return Ok(size);
             }
         }
         // HOT3D has neither camera files nor depth: its sensors' published size.
@@ -497,16 +493,25 @@ pub(crate) fn find_split(root: &Path, opts: &DatasetOptions) -> Result<(PathBuf,
     }
 }
 
-/// The entries of a targets file, and which form they all share: with `obj_id` and
-/// `inst_count` (BOP'19) or without (BOP'24 detection, images only).
-fn load_targets(path: &Path) -> Result<(TargetsForm, Vec<RawTarget>)> {
+fn load_targets(path: &Path) -> Result<(TargetsForm, Vec<ListedTarget>)> {
     if !path.is_file() {
         return Err(Error::format(
             path,
             "no such file: expected the list of test targets (BOP: test_targets_bop19.json)",
         ));
     }
-    let raw = read_json::<Vec<RawTarget>>(path)?;
+    parse_targets(&read(path)?, path)
+}
+
+// The parsers of a dataset's JSON files, one per file, from its bytes (`path` names the file
+// in errors). `Dataset::load` reads each file and hands it to one of them; they are public so
+// that each file can be checked alone: parsing one costs microseconds where a whole load
+// costs every file, the meshes among them (the fuzz targets of `fuzz/` call them so).
+
+/// The entries of a targets file, and which form they all share: with `obj_id` and
+/// `inst_count` (BOP'19) or without (BOP'24 detection, images only).
+pub fn parse_targets(bytes: &[u8], path: &Path) -> Result<(TargetsForm, Vec<ListedTarget>)> {
+    let raw = parse_json::<Vec<ListedTarget>>(bytes, path)?;
     let Some(first) = raw.first() else {
         return Err(Error::format(path, "the file lists no targets"));
     };
@@ -543,7 +548,7 @@ fn load_targets(path: &Path) -> Result<(TargetsForm, Vec<RawTarget>)> {
 /// ground truth, whatever its visibility, counting all its instances. An image listed twice
 /// is taken once.
 fn image_targets(
-    listed: &[RawTarget],
+    listed: &[ListedTarget],
     scenes: &BTreeMap<u32, Scene>,
     path: &Path,
     infos: &BTreeMap<u32, ModelInfo>,
@@ -607,12 +612,14 @@ fn depth_dir_name(sensor: Option<EvalSensor>) -> String {
     }
 }
 
-#[derive(Deserialize)]
-struct RawTarget {
-    scene_id: u32,
-    im_id: u32,
-    obj_id: Option<u32>,
-    inst_count: Option<u32>,
+/// An entry of a targets file as listed: an object's instances in an image (BOP'19), or an
+/// image alone (BOP'24 detection).
+#[derive(Clone, Copy, Debug, Deserialize)]
+pub struct ListedTarget {
+    pub scene_id: u32,
+    pub im_id: u32,
+    pub obj_id: Option<u32>,
+    pub inst_count: Option<u32>,
 }
 
 #[derive(Deserialize)]
@@ -657,14 +664,32 @@ struct RawCameraSize {
     height: Option<u32>,
 }
 
-pub(crate) fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_slice(&bytes).map_err(|e| Error::format(path, e.to_string()))
+/// A dataset's camera file (`camera.json`, `camera_{sensor}.json`): the image size, when it
+/// gives both sides.
+pub fn parse_camera_size(bytes: &[u8], path: &Path) -> Result<Option<(u32, u32)>> {
+    let raw = parse_json::<RawCameraSize>(bytes, path)?;
+    Ok(raw.width.zip(raw.height))
 }
 
-/// Reads a JSON object whose keys are ids ("3") into a map keyed by number.
-fn read_id_map<T: DeserializeOwned>(path: &Path, what: &str) -> Result<BTreeMap<u32, T>> {
-    read_json::<BTreeMap<String, T>>(path)?
+pub(crate) fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
+    parse_json(&read(path)?, path)
+}
+
+fn read(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
+fn parse_json<T: DeserializeOwned>(bytes: &[u8], path: &Path) -> Result<T> {
+    serde_json::from_slice(bytes).map_err(|e| Error::format(path, e.to_string()))
+}
+
+/// Parses a JSON object whose keys are ids ("3") into a map keyed by number.
+fn parse_id_map<T: DeserializeOwned>(
+    bytes: &[u8],
+    path: &Path,
+    what: &str,
+) -> Result<BTreeMap<u32, T>> {
+    parse_json::<BTreeMap<String, T>>(bytes, path)?
         .into_iter()
         .map(|(key, value)| {
             let id = key
@@ -704,7 +729,12 @@ fn models_info_path(root: &Path, models_dir: &Path) -> PathBuf {
 }
 
 fn load_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
-    read_id_map::<RawModelInfo>(path, "an object")?
+    parse_models_info(&read(path)?, path)
+}
+
+/// `models_info.json`: each object's diameter and symmetries.
+pub fn parse_models_info(bytes: &[u8], path: &Path) -> Result<BTreeMap<u32, ModelInfo>> {
+    parse_id_map::<RawModelInfo>(bytes, path, "an object")?
         .into_iter()
         .map(|(id, raw)| {
             let place = format!("object \"{id}\"");
@@ -753,9 +783,39 @@ fn load_scene(split_dir: &Path, scene_id: u32, sensor: Option<EvalSensor>) -> Re
     if sensor.is_none() && !gt_path.exists() {
         explain_sensor_files(&dir, &gt_path)?;
     }
-    let cameras = read_id_map::<RawCamera>(&camera_path, "an image")?;
-    let gts = read_id_map::<Vec<RawGt>>(&gt_path, "an image")?;
-    let infos = read_id_map::<Vec<RawGtInfo>>(&info_path, "an image")?;
+    parse_scene(
+        scene_id,
+        sensor,
+        SceneFiles {
+            camera: (&camera_path, &read(&camera_path)?),
+            gt: (&gt_path, &read(&gt_path)?),
+            gt_info: (&info_path, &read(&info_path)?),
+        },
+    )
+}
+
+/// The three files of a scene, each as its path (for errors) and its bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneFiles<'a> {
+    /// `scene_camera.json`
+    pub camera: (&'a Path, &'a [u8]),
+    /// `scene_gt.json`
+    pub gt: (&'a Path, &'a [u8]),
+    /// `scene_gt_info.json`
+    pub gt_info: (&'a Path, &'a [u8]),
+}
+
+/// A scene from its three files, parsed together since ground-truth ids are list positions
+/// in two of them.
+pub fn parse_scene(
+    scene_id: u32,
+    sensor: Option<EvalSensor>,
+    files: SceneFiles<'_>,
+) -> Result<Scene> {
+    let (camera_path, info_path, gt_path) = (files.camera.0, files.gt_info.0, files.gt.0);
+    let cameras = parse_id_map::<RawCamera>(files.camera.1, camera_path, "an image")?;
+    let gts = parse_id_map::<Vec<RawGt>>(files.gt.1, gt_path, "an image")?;
+    let infos = parse_id_map::<Vec<RawGtInfo>>(files.gt_info.1, info_path, "an image")?;
 
     let mut images = BTreeMap::new();
     for (im_id, gt) in gts {
@@ -768,11 +828,11 @@ fn load_scene(split_dir: &Path, scene_id: u32, sensor: Option<EvalSensor>) -> Re
                 ),
             )
         };
-        let camera = cameras.get(&im_id).ok_or_else(|| missing(&camera_path))?;
-        let info = infos.get(&im_id).ok_or_else(|| missing(&info_path))?;
+        let camera = cameras.get(&im_id).ok_or_else(|| missing(camera_path))?;
+        let info = infos.get(&im_id).ok_or_else(|| missing(info_path))?;
         if info.len() != gt.len() {
             return Err(Error::format(
-                &info_path,
+                info_path,
                 format!(
                     "image \"{im_id}\": {} instances, but {} has {}",
                     info.len(),
@@ -781,15 +841,15 @@ fn load_scene(split_dir: &Path, scene_id: u32, sensor: Option<EvalSensor>) -> Re
                 ),
             ));
         }
-        let (camera_k, fisheye) = read_camera(camera, &camera_path, im_id)?;
+        let (camera_k, fisheye) = read_camera(camera, camera_path, im_id)?;
         let gt = gt
             .iter()
             .zip(info)
             .enumerate()
             .map(|(i, (g, info))| {
                 let place = format!("image \"{im_id}\", instance {i}");
-                let r = fixed(&g.cam_r_m2c, &gt_path, &place, "cam_R_m2c")?;
-                let t = fixed(&g.cam_t_m2c, &gt_path, &place, "cam_t_m2c")?;
+                let r = fixed(&g.cam_r_m2c, gt_path, &place, "cam_R_m2c")?;
+                let t = fixed(&g.cam_t_m2c, gt_path, &place, "cam_t_m2c")?;
                 Ok(GtInstance {
                     obj_id: g.obj_id,
                     pose: Pose::from_row_major(&r, &t),
@@ -968,6 +1028,41 @@ mod tests {
     }
 
     #[test]
+    fn each_file_parses_alone_as_the_load_parses_it() {
+        let d = reference();
+        let read = |name: &str| std::fs::read(Path::new(REFERENCE).join(name)).unwrap();
+        let (gt, camera, info) = (
+            read("test/000001/scene_gt.json"),
+            read("test/000001/scene_camera.json"),
+            read("test/000001/scene_gt_info.json"),
+        );
+        let files = SceneFiles {
+            camera: (Path::new("scene_camera.json"), &camera),
+            gt: (Path::new("scene_gt.json"), &gt),
+            gt_info: (Path::new("scene_gt_info.json"), &info),
+        };
+        assert_eq!(parse_scene(1, None, files).unwrap(), d.scenes[&1]);
+        let infos = parse_models_info(&read("models/models_info.json"), Path::new("m")).unwrap();
+        assert_eq!(infos[&3], d.objects[&3].info);
+        let (form, listed) =
+            parse_targets(&read("test_targets_bop19.json"), Path::new("t")).unwrap();
+        assert_eq!((form, listed.len()), (d.targets_form, d.targets.len()));
+        assert_eq!(
+            parse_camera_size(&read("camera.json"), Path::new("c")).unwrap(),
+            Some(d.image_size)
+        );
+        let e = parse_scene(
+            1,
+            None,
+            SceneFiles {
+                gt: (Path::new("g"), &b"[1]"[..]),
+                ..files
+            },
+        );
+        assert!(e.unwrap_err().to_string().contains("g"));
+    }
+
+    #[test]
     fn score_files_are_the_files_read_and_the_target_depths() {
         let d = reference();
         let files = d.score_files().unwrap();
@@ -1076,6 +1171,25 @@ mod tests {
                 .unwrap();
             std::fs::remove_file(png).unwrap();
         }
+    }
+
+    #[test]
+    fn a_tiff_declaring_more_values_than_it_holds_is_refused_before_decoding() {
+        // Found by fuzzing: this 506-byte file made the tiff crate allocate 153 MB.
+        let input = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fuzz/regressions/depth_tiff/oom-328a1de69a01afa6c9e31eb6a5f0893754dfd35c");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("000000.tif");
+        std::fs::copy(input, &path).unwrap();
+        let Err(e) = DepthFile::open(path, DepthFormat::Tiff, 1.0) else {
+            panic!("the file is refused");
+        };
+        assert!(e.to_string().contains("invalid TIFF: tag"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("more than the file's 506 bytes hold"),
+            "{e}"
+        );
     }
 
     #[test]

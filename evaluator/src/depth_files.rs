@@ -5,7 +5,7 @@
 //! size, so a small file cannot claim a huge image and exhaust memory.
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -264,8 +264,13 @@ pub(crate) fn tiff_error(path: &Path, e: tiff::TiffError) -> Error {
 }
 
 pub(crate) fn tiff_decoder(path: &Path) -> Result<tiff::decoder::Decoder<BufReader<File>>> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
     let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    if let Some(problem) =
+        oversized_tiff_value(&mut file, file_len).map_err(|e| Error::io(path, e))?
+    {
+        return Err(Error::format(path, format!("invalid TIFF: {problem}")));
+    }
     let mut limits = tiff::decoder::Limits::default();
     limits.decoding_buffer_size = limits
         .decoding_buffer_size
@@ -273,6 +278,96 @@ pub(crate) fn tiff_decoder(path: &Path) -> Result<tiff::decoder::Decoder<BufRead
     Ok(tiff::decoder::Decoder::new(BufReader::new(file))
         .map_err(|e| tiff_error(path, e))?
         .with_limits(limits))
+}
+
+/// A value of the first directory that claims more bytes than the file has, said as a problem.
+/// The `tiff` crate reserves room for each value's declared count as it reads the first
+/// directory, inside `Decoder::new`, before any limits set on the decoder apply (under its
+/// default ones, up to 256 MiB): fuzzing found a 506-byte file that made it allocate 153 MB. A
+/// value that does not fit in its entry is stored in the file, so a count beyond the file's
+/// length is invalid anyway; anything else about the header is left to the crate. Leaves the
+/// file at its start.
+fn oversized_tiff_value(file: &mut File, file_len: u64) -> std::io::Result<Option<String>> {
+    let mut head = [0u8; 16];
+    let got = read_up_to(file, &mut head)?;
+    let (little, big) = match &head[..4.min(got)] {
+        b"II*\0" => (true, false),
+        b"MM\0*" => (false, false),
+        b"II+\0" => (true, true),
+        b"MM\0+" => (false, true),
+        _ => return rewound(file, None),
+    };
+    let number = |bytes: &[u8]| {
+        let next = |n: u64, b: &u8| (n << 8) | u64::from(*b);
+        if little {
+            bytes.iter().rev().fold(0, next)
+        } else {
+            bytes.iter().fold(0, next)
+        }
+    };
+    let (directory, count_len, entry_len, value_count_len) = if big {
+        (number(&head[8..16]), 8, 20, 8)
+    } else {
+        (number(&head[4..8]), 2, 12, 4)
+    };
+    if directory >= file_len {
+        return rewound(file, None);
+    }
+    file.seek(SeekFrom::Start(directory))?;
+    let mut count = [0u8; 8];
+    if read_up_to(file, &mut count[..count_len])? < count_len {
+        return rewound(file, None);
+    }
+    let entries = number(&count[..count_len]);
+    if entries.saturating_mul(entry_len) > file_len {
+        return rewound(
+            file,
+            Some(format!(
+                "the first directory has {entries} entries, more than the file holds"
+            )),
+        );
+    }
+    let mut entry = [0u8; 20];
+    for _ in 0..entries {
+        let entry = &mut entry[..entry_len as usize];
+        if read_up_to(file, entry)? < entry.len() {
+            break;
+        }
+        let tag = number(&entry[0..2]);
+        let value_size = match number(&entry[2..4]) {
+            3 | 8 => 2,
+            4 | 9 | 11 | 13 => 4,
+            5 | 10 | 12 | 16..=18 => 8,
+            _ => 1,
+        };
+        let values = number(&entry[4..4 + value_count_len]);
+        if values.saturating_mul(value_size) > file_len {
+            return rewound(
+                file,
+                Some(format!(
+                    "tag {tag} declares {values} values, more than the file's {file_len} bytes hold"
+                )),
+            );
+        }
+    }
+    rewound(file, None)
+}
+
+fn rewound(file: &mut File, problem: Option<String>) -> std::io::Result<Option<String>> {
+    file.seek(SeekFrom::Start(0))?;
+    Ok(problem)
+}
+
+/// Reads until `buf` is full or the file ends; how many bytes were read.
+fn read_up_to(file: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match file.read(&mut buf[got..])? {
+            0 => break,
+            n => got += n,
+        }
+    }
+    Ok(got)
 }
 
 /// A 16-bit (or 8-bit) grayscale TIFF, uncompressed or compressed with LZW, Deflate or

@@ -7,8 +7,11 @@ the real files: the same headers, fields and encodings, cut down to a few lines,
 pixels or faces.
 """
 
+import io
 import json
 import struct
+import urllib.parse
+import zipfile
 import zlib
 from pathlib import Path
 
@@ -203,6 +206,83 @@ def depth():
         write("depth_tiff", "%06d_%06d.tif" % (scene, image), tiff_file(w, h, part))
 
 
+def zip_bytes(entries, method=zipfile.ZIP_DEFLATED):
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", method) as z:
+        for name, data in entries:
+            # A fixed date, so that the seeds are the same bytes at every run.
+            info = zipfile.ZipInfo(name, date_time=(2024, 6, 1, 12, 0, 0))
+            info.compress_type = method
+            z.writestr(info, data)
+    return buf.getvalue()
+
+
+def result_lines(name, n):
+    return head_lines(REFERENCE / "results" / name, n)
+
+
+def archive():
+    """Zip uploads as archivers write them: a top folder, macOS's resource forks, Stored and
+    Deflate entries, and the entries the service refuses (other files, paths leaving it)."""
+    noisy, multi = result_lines("noisesmall_synthA-test.csv", 5), result_lines("multi_synthA-test.csv", 5)
+    write("archive", "folder-deflate.zip", zip_bytes([
+        ("results/", b""),
+        ("results/noisy_synthA-test.csv", noisy),
+        ("results/multi_synthB-test.csv", multi),
+        ("__MACOSX/results/._noisy_synthA-test.csv", b"\x00\x05\x16\x07" + bytes(12)),
+    ]))
+    write("archive", "stored.zip", zip_bytes([("noisy_synthA-test.csv", noisy)], zipfile.ZIP_STORED))
+    write("archive", "refused.zip", zip_bytes([
+        ("noisy_synthA-test.csv", noisy),
+        ("readme.txt", b"hello"),
+        ("../multi_synthA-test.csv", multi),
+    ]))
+
+
+BOUNDARY = b"------------------------8c3c1e2a0f4b7d95"
+
+
+def multipart_body(fields, files):
+    """A multipart/form-data body as browsers and curl write it, behind the line naming its
+    boundary (the target's input: first line the boundary, the rest the body)."""
+    out = b""
+    for name, value in fields:
+        out += b"--" + BOUNDARY + b'\r\nContent-Disposition: form-data; name="' + name + b'"\r\n\r\n' + value + b"\r\n"
+    for filename, kind, data in files:
+        out += (b"--" + BOUNDARY + b'\r\nContent-Disposition: form-data; name="file"; filename="' + filename
+                + b'"\r\nContent-Type: ' + kind + b"\r\n\r\n" + data + b"\r\n")
+    return BOUNDARY + b"\n" + out + b"--" + BOUNDARY + b"--\r\n"
+
+
+def multipart():
+    noisy = result_lines("noisesmall_synthA-test.csv", 5)
+    write("multipart", "api-upload", multipart_body(
+        [(b"method", b"CosyPose"), (b"visibility", b"public"), (b"protocol", b"bop19,eccv18")],
+        [(b"noisy_synthA-test.csv", b"text/csv", noisy)]))
+    write("multipart", "browser-form", multipart_body(
+        [(b"csrf", b"3f9a0c"), (b"method", b"Caf\xc3\xa9 Pose"), (b"team", b"vision-lab"),
+         (b"dataset", b"synthA"), (b"protocol", b"bop24"), (b"description", b"Two stages:\r\ndetect, refine."),
+         (b"paper_url", b"https://arxiv.org/abs/2010.00000"), (b"code_url", b""), (b"training_data", b"synthetic"),
+         (b"modality", b"rgb-d"), (b"onboarding", b"model-based"), (b"objects", b"seen"),
+         (b"hardware", b"1x RTX 3090"), (b"anonymous", b"true"), (b"publish", b"on")],
+        [(b"C:\\results\\noisy_synthA-test.csv", b"text/csv", noisy), (b"", b"application/octet-stream", b"")]))
+    write("multipart", "zip-upload", multipart_body(
+        [(b"method", b"zipped")],
+        [(b"all.zip", b"application/zip", zip_bytes([("noisy_synthA-test.csv", noisy)]))]))
+
+
+def forms():
+    """The first byte chooses (see fuzz_targets/forms.rs): even, the method edit form; odd, a
+    query string."""
+    write("forms", "method-edit", b"\x00" + b"csrf=3f9a0c&description=Two+stages%3A+detect%2C+refine.&authors=A.+B%C3%A9&year=2024"
+          b"&paper_url=https%3A%2F%2Farxiv.org%2Fabs%2F2010.00000&code_url=&training_data=synthetic"
+          b"&detection_modality=rgb&modality=rgb-d&refinement=ICP&detections=default&model_scope=per-object"
+          b"&hardware=1x+RTX+3090&onboarding=model-based&objects=seen&anonymous=true")
+    write("forms", "board-query", b"\x01" + b"dataset=synthA&sort=bop19&training=real&modality=rgb-d&objects=unseen"
+          b"&onboarding=model-free&group=core&curves=3,7&page=2&protocol=bop19")
+    write("forms", "page-query", b"\x01" + b"page=12&visibility=public&protocol=bop22-seg&next=%2Faccount")
+
+
 # The dataset target's first byte chooses the file its other bytes replace (see
 # fuzz_targets/dataset_json.rs): the seeds are the fixture's own files behind their selector.
 DATASET_FILES = [
@@ -221,9 +301,90 @@ def dataset_json():
         write("dataset_json", "%d-%s" % (selector, name.replace("/", "_")), bytes([selector]) + data)
 
 
+# The largest input a run tries (libFuzzer's -max_len; see fuzz/bounds.sh).
+MAX_LEN = 65536
+
+
+def largest():
+    """One valid input per target, as large as a run's inputs may be (at most MAX_LEN bytes),
+    written to fuzz/largest/<target>: the time and memory it takes set the bounds of
+    fuzz/bounds.sh. Not seeds: a fuzzer mutates small inputs faster."""
+    out = OUT.parent / "largest"
+    out.mkdir(exist_ok=True)
+
+    def fill(make, n_max):
+        """make(n) for the largest n whose output fits MAX_LEN."""
+        best, lo, hi = make(1), 1, n_max
+        while lo <= hi:
+            mid = (lo + hi) // 2
+            data = make(mid)
+            if len(data) <= MAX_LEN:
+                best, lo = data, mid + 1
+            else:
+                hi = mid - 1
+        return best
+
+    results = REFERENCE / "results"
+    header, *rows = (results / "multi_synthA-test.csv").read_bytes().splitlines(keepends=True)
+    for other in ["noiselarge_synthA-test.csv", "noisemedium_synthA-test.csv", "extra_synthA-test.csv"]:
+        rows += (results / other).read_bytes().splitlines(keepends=True)[1:]
+    csv = fill(lambda n: header + b"".join(rows[:n]), len(rows))
+    (out / "bop_csv").write_bytes(csv)
+
+    entries = json.loads((FIXTURES / "coco" / "results" / "many_tudl-test.json").read_text())
+    (out / "bop22_json").write_bytes(fill(lambda n: json.dumps(entries[:n]).encode(), len(entries)))
+
+    def mesh(n):
+        vertices, faces, props = small_mesh(DATASET / "models" / "obj_000001.ply", n)
+        head = (["ply", "format binary_little_endian 1.0", "element vertex %d" % len(vertices)] + props
+                + ["element face %d" % len(faces), "property list uchar int vertex_indices", "end_header"])
+        body = b"".join(struct.pack("<%df" % len(v), *v) for v in vertices)
+        body += b"".join(struct.pack("<B%di" % len(f), len(f), *f) for f in faces)
+        return ("\n".join(head) + "\n").encode() + body
+    (out / "ply").write_bytes(fill(mesh, 100000))
+
+    width, height, rows16 = read_depth_png(DATASET / "test" / "000001" / "depth" / "000000.png")
+    def png(n):
+        w, h = min(width, 4 * n), min(height, 3 * n)
+        return png_file(w, h, crop(rows16, (width - w) // 2, (height - h) // 2, w, h), 2)
+    (out / "depth_png").write_bytes(fill(png, min(width // 4, height // 3)))
+    def tif(n):
+        w, h = min(width, 4 * n), min(height, 3 * n)
+        return tiff_file(w, h, crop(rows16, (width - w) // 2, (height - h) // 2, w, h))
+    (out / "depth_tiff").write_bytes(fill(tif, min(width // 4, height // 3)))
+
+    # models_info.json of many objects: the one file of a dataset that stands alone.
+    info = json.loads((DATASET / "models" / "models_info.json").read_text())
+    first = next(iter(info.values()))
+    def models(n):
+        return bytes([3]) + json.dumps({str(i + 1): first for i in range(n)}, indent=1).encode()
+    (out / "dataset_json").write_bytes(fill(models, 100000))
+
+    def zipped(n):
+        return zip_bytes([("results/r%d_synthA-test.csv" % i, csv[: 4096 * (1 + i % 4)]) for i in range(n)])
+    (out / "archive").write_bytes(fill(zipped, 20))
+
+    (out / "multipart").write_bytes(fill(lambda n: multipart_body(
+        [(b"method", b"CosyPose"), (b"visibility", b"public")],
+        [(b"multi_synthA-test.csv", b"text/csv", csv[: n * 1024])]), 64))
+
+    # The longest form the fields allow (a description is at most 10,000 characters).
+    description = ("Two stages: detect, then refine with ICP. " * 240)[:10000]
+    (out / "forms").write_bytes(b"\x00" + urllib.parse.urlencode({
+        "csrf": "3f9a0c", "description": description, "authors": "A. B\u00e9, C. D", "year": "2024",
+        "paper_url": "https://arxiv.org/abs/2010.00000", "training_data": "synthetic", "modality": "rgb-d",
+        "refinement": "ICP " * 100, "detections": "default", "model_scope": "per-object",
+        "hardware": "1x RTX 3090", "onboarding": "model-based", "objects": "seen", "anonymous": "true",
+    }).encode())
+
+
 if __name__ == "__main__":
     bop_csv()
     bop22_json()
     ply()
     depth()
     dataset_json()
+    archive()
+    multipart()
+    forms()
+    largest()

@@ -3,6 +3,7 @@
 //! internal fault); the web layer alone turns it into a status and a body (`web::error`), so
 //! the use cases stay free of HTTP.
 
+use intake::archive::ArchiveError;
 use serde::Serialize;
 
 use crate::domain::FieldError;
@@ -120,6 +121,31 @@ impl From<StoreError> for AppError {
 impl From<FieldError> for AppError {
     fn from(e: FieldError) -> Self {
         AppError::BadRequest(e.to_string())
+    }
+}
+
+/// A refused archive is an upload that cannot be evaluated, each refused entry one problem
+/// of the answer; an I/O fault stays the service's.
+impl From<ArchiveError> for AppError {
+    fn from(e: ArchiveError) -> Self {
+        match e {
+            ArchiveError::Invalid(message) => AppError::Invalid {
+                message,
+                problems: Vec::new(),
+            },
+            ArchiveError::Refused { message, entries } => AppError::Invalid {
+                message,
+                problems: entries
+                    .into_iter()
+                    .map(|entry| LineProblem {
+                        file: Some(entry.file),
+                        line: 0,
+                        message: entry.message,
+                    })
+                    .collect(),
+            },
+            ArchiveError::Io(e) => AppError::Io(e),
+        }
     }
 }
 

@@ -24,17 +24,16 @@
 //! against the images of the dataset's `test_targets_bop24.json`; a dataset without that file
 //! takes none.
 
-mod archive;
 pub mod quota;
 
 use std::collections::BTreeMap;
-use std::io::Write;
-use std::path::Path;
+use std::fs::File;
+use std::io::BufReader;
 use std::sync::Arc;
 
 use evaluator::protocol::ProtocolName;
 use evaluator::{coco, results};
-use sha2::{Digest, Sha256};
+use intake::archive;
 
 use crate::app::App;
 use crate::clock::now_ms;
@@ -52,6 +51,8 @@ use crate::store::accounts::User;
 use crate::store::methods::MethodMeta;
 use crate::store::submissions::{CreatedAll, CreatedOne, FairUse, NewSubmission, SubmissionRow};
 use crate::wording;
+
+pub use intake::UploadedFile;
 
 /// Estimate evaluations per second assumed until this service has measured its own speed.
 const ASSUMED_SPEED: f64 = 250.0;
@@ -159,34 +160,6 @@ pub struct Upload {
     pub visibility: Option<Visibility>,
     /// One result file per dataset.
     pub files: Vec<UploadedFile>,
-}
-
-/// A result file received into a temporary file of the submissions folder (removed unless it
-/// is kept), with its content hash.
-#[derive(Debug)]
-pub struct UploadedFile {
-    /// The client's name for it, for display.
-    pub name: String,
-    pub tmp: tempfile::TempPath,
-    pub sha256: String,
-    pub size: u64,
-}
-
-impl UploadedFile {
-    /// A file from bytes already in memory (the demo set-up).
-    pub fn from_bytes(dir: &Path, name: &str, bytes: &[u8]) -> std::io::Result<UploadedFile> {
-        let mut tmp = tempfile::Builder::new()
-            .prefix("upload-")
-            .tempfile_in(dir)?;
-        tmp.write_all(bytes)?;
-        tmp.flush()?;
-        Ok(UploadedFile {
-            name: name.to_string(),
-            tmp: tmp.into_temp_path(),
-            sha256: hex::encode(Sha256::digest(bytes)),
-            size: bytes.len() as u64,
-        })
-    }
 }
 
 pub struct Accepted {
@@ -323,9 +296,12 @@ async fn unpack_archives(app: &App, files: Vec<UploadedFile>) -> AppResult<Vec<U
         }
         let (dir, limit) = (app.config.submissions_dir(), app.config.max_upload_bytes());
         // Inflating is CPU work and blocking reads: off the async threads.
-        let unpacked = tokio::task::spawn_blocking(move || archive::unpack(&dir, &file, limit))
-            .await
-            .map_err(|e| AppError::failed("unpacking a zip archive", e))??;
+        let unpacked = tokio::task::spawn_blocking(move || {
+            let reader = BufReader::new(File::open(&file.tmp)?);
+            archive::unpack(&dir, &file.name, reader, limit)
+        })
+        .await
+        .map_err(|e| AppError::failed("unpacking a zip archive", e))??;
         out.extend(unpacked);
     }
     Ok(out)

@@ -23,7 +23,7 @@ use crate::store::accounts::User;
 use crate::web::auth::Viewer;
 use crate::web::render::overlay::{self, TargetId};
 use crate::web::routes::deadlines;
-use crate::web::routes::submissions::{field_text, multipart_error, read_upload};
+use crate::web::routes::submissions::{field_text, multipart_error, parse_fields, read_upload};
 use crate::web::routes::{boards, recent};
 use crate::web::views;
 
@@ -145,7 +145,7 @@ async fn create_submission(
     // Credentials are checked before the body is looked at, even a malformed one.
     let multipart = multipart.map_err(|e| AppError::BadRequest(e.body_text()))?;
     let (fields, files) = read_upload(&app, multipart, app.config.max_upload_bytes()).await?;
-    let accepted = submit(&app, &owner, fields.parse(files)?).await?;
+    let accepted = submit(&app, &owner, parse_fields(&fields, files)?).await?;
     // 200 only when every file had been submitted before.
     let status = if accepted.iter().all(|a| a.duplicate) {
         StatusCode::OK

@@ -17,8 +17,8 @@ use serde::Deserialize;
 use crate::app::{App, AppState};
 use crate::board_cache::Format;
 use crate::domain::{
-    BoardProtocol, DEFAULT_GROUP, FileKind, MethodForm, MethodId, Modality, ModelScope, Objects,
-    Onboarding, SnapshotId, SubmissionId, TrainingData, UploadTask, Visibility,
+    BoardProtocol, DEFAULT_GROUP, FileKind, MethodEditForm, MethodId, Modality, ModelScope,
+    Objects, Onboarding, SnapshotId, SubmissionId, TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
 use crate::service::catalogue::ServedDataset;
@@ -36,7 +36,7 @@ use crate::web::auth::Viewer;
 use crate::web::error::ErrorBody;
 use crate::web::routes::boards;
 use crate::web::routes::deadlines;
-use crate::web::routes::submissions::read_upload;
+use crate::web::routes::submissions::{parse_fields, read_upload};
 use crate::web::views::targets;
 use crate::web::views::{self, BoardFilter, Leaderboard, MySubmissions, SubmissionView};
 
@@ -443,14 +443,6 @@ async fn method(
     })
 }
 
-#[derive(Deserialize)]
-struct MethodEditForm {
-    #[serde(default)]
-    csrf: String,
-    #[serde(flatten)]
-    fields: MethodForm,
-}
-
 async fn edit_method(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -675,7 +667,7 @@ async fn submit(
         csrf: viewer.csrf_token(),
         ..SubmitPage::default()
     };
-    let accepted = match fields.parse(files) {
+    let accepted = match parse_fields(&fields, files) {
         Ok(upload) => submissions::submit(&app, &owner, upload).await,
         Err(e) => Err(e),
     };

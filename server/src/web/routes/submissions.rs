@@ -8,6 +8,7 @@ use std::str::FromStr;
 use axum::extract::Multipart;
 use axum::extract::multipart::Field;
 use evaluator::protocol::ProtocolName;
+use intake::upload::{MAX_FILES, MAX_TEXT_FIELD, UploadFields, client_file_name};
 use sha2::{Digest, Sha256};
 use tokio::io::AsyncWriteExt;
 
@@ -19,103 +20,69 @@ use crate::error::{AppError, AppResult};
 use crate::service::submissions::{Protocols, Upload, UploadedFile};
 use crate::store::methods::MethodMeta;
 
-/// Longest accepted text field (method description and the like).
-const MAX_TEXT_FIELD: usize = 10_000;
-
-/// Most result files in one upload: one per dataset, and BOP has fewer than twenty.
-const MAX_FILES: usize = 20;
-
-/// The fields of an upload as sent.
-#[derive(Debug, Default)]
-pub struct Fields {
-    pub method: String,
-    /// The team whose method it is, empty for the uploader's own.
-    pub team: String,
-    pub dataset: String,
-    pub protocol: String,
-    pub description: String,
-    pub paper_url: String,
-    pub code_url: String,
-    pub training_data: String,
-    pub modality: String,
-    pub onboarding: String,
-    pub objects: String,
-    pub hardware: String,
-    /// `true`: the method is under double-blind review; empty leaves it as it is.
-    pub anonymous: String,
-    pub visibility: String,
-    /// The form's "publish when evaluated" box (sent only when ticked); the API reads
-    /// `visibility` instead.
-    pub publish: String,
-    /// The CSRF token of a browser form (the API authenticates by token instead).
-    pub csrf: String,
-}
-
-impl Fields {
-    /// Checks every field and makes the upload the submissions service takes.
-    pub fn parse(&self, files: Vec<UploadedFile>) -> AppResult<Upload> {
-        let method = MethodName::parse(&self.method)?;
-        let team = match self.team.trim() {
-            "" => None,
-            t => Some(TeamName::parse("team", t)?),
-        };
-        let (protocols, task) = match self.protocol.trim() {
-            "" => (Protocols::asked(&[]), None),
-            p => match Task::from_str(p) {
-                Ok(task) => (Protocols::default(), Some(task)),
-                Err(_) => {
-                    // One protocol, or both as `bop19,eccv18`.
-                    let mut asked = Vec::new();
-                    for name in p.split(',').map(str::trim) {
-                        let name = ProtocolName::from_str(name).map_err(|_| {
-                            AppError::BadRequest(format!(
-                                "unknown protocol `{name}` ({})",
-                                UploadTask::values()
-                            ))
-                        })?;
-                        if !asked.contains(&name) {
-                            asked.push(name);
-                        }
+/// Checks every field and makes the upload the submissions service takes.
+pub fn parse_fields(fields: &UploadFields, files: Vec<UploadedFile>) -> AppResult<Upload> {
+    let method = MethodName::parse(&fields.method)?;
+    let team = match fields.team.trim() {
+        "" => None,
+        t => Some(TeamName::parse("team", t)?),
+    };
+    let (protocols, task) = match fields.protocol.trim() {
+        "" => (Protocols::asked(&[]), None),
+        p => match Task::from_str(p) {
+            Ok(task) => (Protocols::default(), Some(task)),
+            Err(_) => {
+                // One protocol, or both as `bop19,eccv18`.
+                let mut asked = Vec::new();
+                for name in p.split(',').map(str::trim) {
+                    let name = ProtocolName::from_str(name).map_err(|_| {
+                        AppError::BadRequest(format!(
+                            "unknown protocol `{name}` ({})",
+                            UploadTask::values()
+                        ))
+                    })?;
+                    if !asked.contains(&name) {
+                        asked.push(name);
                     }
-                    (Protocols::asked(&asked), None)
                 }
-            },
-        };
-        let visibility = match self.visibility.trim() {
+                (Protocols::asked(&asked), None)
+            }
+        },
+    };
+    let visibility = match fields.visibility.trim() {
+        "" => None,
+        v => Some(v.parse::<Visibility>()?),
+    };
+    let meta = MethodMeta {
+        description: Description::parse(&fields.description)?,
+        paper_url: Link::parse("paper_url", &fields.paper_url)?,
+        code_url: Link::parse("code_url", &fields.code_url)?,
+        training_data: optional(&fields.training_data)?,
+        modality: optional(&fields.modality)?,
+        anonymous: match fields.anonymous.trim() {
             "" => None,
-            v => Some(v.parse::<Visibility>()?),
-        };
-        let meta = MethodMeta {
-            description: Description::parse(&self.description)?,
-            paper_url: Link::parse("paper_url", &self.paper_url)?,
-            code_url: Link::parse("code_url", &self.code_url)?,
-            training_data: optional(&self.training_data)?,
-            modality: optional(&self.modality)?,
-            anonymous: match self.anonymous.trim() {
-                "" => None,
-                sent => Some(flag("anonymous", sent)?),
-            },
-            onboarding: optional(&self.onboarding)?,
-            objects: optional(&self.objects)?,
-        };
-        if files.is_empty() {
-            return Err(AppError::BadRequest(
-                "field `file` (the result file) is required".into(),
-            ));
-        }
-        let dataset = self.dataset.trim();
-        Ok(Upload {
-            method,
-            team,
-            dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
-            protocols,
-            task,
-            meta,
-            hardware: Hardware::parse(&self.hardware)?,
-            visibility,
-            files,
-        })
+            sent => Some(flag("anonymous", sent)?),
+        },
+        onboarding: optional(&fields.onboarding)?,
+        objects: optional(&fields.objects)?,
+    };
+    if files.is_empty() {
+        return Err(AppError::BadRequest(
+            "field `file` (the result file) is required".into(),
+        ));
     }
+    let dataset = fields.dataset.trim();
+    Ok(Upload {
+        method,
+        team,
+        dataset: (!dataset.is_empty()).then(|| dataset.to_string()),
+        protocols,
+        task,
+        meta,
+        hardware: Hardware::parse(&fields.hardware)?,
+        visibility,
+        files,
+    })
 }
 
 /// Reads a multipart upload, streaming each file (every `file` field) to a temporary file in
@@ -124,49 +91,30 @@ pub async fn read_upload(
     app: &App,
     mut multipart: Multipart,
     limit: u64,
-) -> AppResult<(Fields, Vec<UploadedFile>)> {
-    let mut fields = Fields::default();
+) -> AppResult<(UploadFields, Vec<UploadedFile>)> {
+    let mut fields = UploadFields::default();
     let mut files: Vec<UploadedFile> = Vec::new();
     while let Some(field) = multipart.next_field().await.map_err(multipart_error)? {
         let name = field.name().unwrap_or_default().to_string();
-        let slot = match name.as_str() {
-            "file" => {
-                if files.len() == MAX_FILES {
-                    return Err(AppError::BadRequest(format!(
-                        "at most {MAX_FILES} files in one upload"
-                    )));
-                }
-                let used: u64 = files.iter().map(|f| f.size).sum();
-                let file = save_file(app, field, limit - used, limit).await?;
-                // A browser sends an empty file field when no file is chosen.
-                if !(file.size == 0 && file.name.is_empty()) {
-                    files.push(file);
-                }
-                continue;
+        if name == "file" {
+            if files.len() == MAX_FILES {
+                return Err(AppError::BadRequest(format!(
+                    "at most {MAX_FILES} files in one upload"
+                )));
             }
-            "method" => &mut fields.method,
-            "team" => &mut fields.team,
-            "dataset" => &mut fields.dataset,
-            "protocol" => &mut fields.protocol,
-            "description" => &mut fields.description,
-            "paper_url" => &mut fields.paper_url,
-            "code_url" => &mut fields.code_url,
-            "training_data" => &mut fields.training_data,
-            "modality" => &mut fields.modality,
-            "onboarding" => &mut fields.onboarding,
-            "objects" => &mut fields.objects,
-            "hardware" => &mut fields.hardware,
-            "anonymous" => &mut fields.anonymous,
-            "visibility" => &mut fields.visibility,
-            "publish" => &mut fields.publish,
-            "csrf" => &mut fields.csrf,
-            _ => {
-                // Unknown fields are drained and ignored.
-                field_text(field).await?;
-                continue;
+            let used: u64 = files.iter().map(|f| f.size).sum();
+            let file = save_file(app, field, limit - used, limit).await?;
+            // A browser sends an empty file field when no file is chosen.
+            if !(file.size == 0 && file.name.is_empty()) {
+                files.push(file);
             }
-        };
-        *slot = field_text(field).await?;
+            continue;
+        }
+        let text = field_text(field).await?;
+        // Unknown fields are drained and ignored.
+        if let Some(slot) = fields.slot(&name) {
+            *slot = text;
+        }
     }
     Ok((fields, files))
 }
@@ -204,16 +152,7 @@ async fn save_file(
     limit: u64,
 ) -> AppResult<UploadedFile> {
     // Only the last path component of the client's file name is kept, for display.
-    let name = field
-        .file_name()
-        .unwrap_or("results.csv")
-        .rsplit(['/', '\\'])
-        .next()
-        .unwrap_or("results.csv")
-        .chars()
-        .filter(|c| !c.is_control())
-        .take(200)
-        .collect::<String>();
+    let name = client_file_name(field.file_name());
     let tmp = tempfile::Builder::new()
         .prefix("upload-")
         .tempfile_in(app.config.submissions_dir())?
