@@ -4,7 +4,7 @@
 
 mod ids;
 
-pub use ids::{DatasetId, MethodId, SnapshotId, SubmissionId, TeamId, UserId};
+pub use ids::{ChallengeId, DatasetId, MethodId, SnapshotId, SubmissionId, TeamId, UserId};
 
 use std::fmt;
 use std::str::FromStr;
@@ -341,6 +341,12 @@ macro_rules! word_enum {
         }
     };
 }
+
+mod challenge;
+
+pub use challenge::{
+    Award, ChallengeForm, ChallengeName, ChallengeSlug, ChallengeSpec, DEFAULT_FAST_SECONDS,
+};
 
 word_enum!(
     /// Who may see a submission: everyone (and the leaderboards), or its owner and the admins.

@@ -14,7 +14,10 @@
 //! Split by concern: `pool` starts the workers and runs the claim loop, `job` runs one
 //! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding
 //! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says.
+//! `challenge_deadlines` is the server's other background task: the snapshots at the
+//! challenges' deadlines.
 
+mod challenge_deadlines;
 mod evaluation;
 mod job;
 mod lease;
@@ -22,4 +25,5 @@ mod pool;
 mod rescoring;
 mod retry;
 
+pub use challenge_deadlines::spawn_deadline_watch;
 pub use pool::spawn_workers;
