@@ -500,8 +500,8 @@ async fn charts_are_legible(c: &Client, url: &str) {
     }
 }
 
-/// Creates the challenge `bop-browser` (its deadline two seconds ahead) and waits until the
-/// server has taken its snapshot.
+/// Creates the challenge `bop-browser` over a group of `synthA` (its deadline two seconds
+/// ahead) and waits until the server has taken its snapshot.
 fn challenge_past_its_deadline(base: &str, admin: &str) {
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -524,11 +524,18 @@ fn challenge_past_its_deadline(base: &str, admin: &str) {
         rem % 3600 / 60,
         rem % 60
     );
+    // Over the one dataset the browser's entry covers (the wide one is core too).
+    let r = post_as(
+        &format!("{base}/api/v1/admin/groups"),
+        admin,
+        Some(json!({ "name": "synth-a", "datasets": ["synthA"] })),
+    );
+    assert!(r.status().is_success(), "{}", r.text().unwrap_or_default());
     let r = post_as(
         &format!("{base}/api/v1/admin/challenges"),
         admin,
         Some(
-            json!({ "slug": "bop-browser", "name": "BOP browser challenge", "tasks": ["bop19", "eccv18"], "deadline": deadline }),
+            json!({ "slug": "bop-browser", "name": "BOP browser challenge", "tasks": ["bop19", "eccv18"], "groups": ["synth-a"], "deadline": deadline }),
         ),
     );
     assert_eq!(r.status(), 201, "{}", r.text().unwrap_or_default());

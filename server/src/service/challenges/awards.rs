@@ -33,7 +33,8 @@ pub fn title(award: Award) -> &'static str {
     }
 }
 
-/// The rule of `award`, in the words the page writes next to it.
+/// The rule of `award`, in the words the page writes next to it (the page says once what is
+/// averaged, and when).
 pub fn rule(award: Award, fast_seconds: f64) -> String {
     let among = match award {
         Award::Overall => "every method".to_string(),
@@ -52,9 +53,7 @@ pub fn rule(award: Award, fast_seconds: f64) -> String {
                 .to_string()
         }
     };
-    format!(
-        "The highest average over the challenge's first group at the deadline among {among}, as the method's fields stood then."
-    )
+    format!("The highest average among {among}.")
 }
 
 /// The row winning `award` on the board of `protocol`: the highest average among the eligible
