@@ -344,9 +344,7 @@ macro_rules! word_enum {
 
 mod challenge;
 
-pub use challenge::{
-    Award, ChallengeForm, ChallengeName, ChallengeSlug, ChallengeSpec, DEFAULT_FAST_SECONDS,
-};
+pub use challenge::{Award, ChallengeForm, ChallengeName, ChallengeSlug, ChallengeSpec};
 
 word_enum!(
     /// Who may see a submission: everyone (and the leaderboards), or its owner and the admins.
