@@ -1,5 +1,6 @@
 //! The application state shared by the HTTP handlers, the services and the workers: the
-//! store, the configuration, the evaluation pool and the loaded datasets.
+//! store, the configuration, the evaluation pool and the loaded datasets with their prepared
+//! forms.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,7 @@ use crate::datasets::config::{
     BOP24_TARGETS, LoadError, bop24_options, folder_options, is_dataset_folder,
 };
 use crate::datasets::parsed_files::ParsedFiles;
+use crate::datasets::prepared::Shelf;
 use crate::datasets::uploaded_file;
 use crate::domain::DatasetId;
 use crate::error::{AppError, AppResult, Chain};
@@ -33,6 +35,9 @@ pub struct App {
     pub boards: BoardCache,
     /// Result files parsed for the pictures of their targets.
     pub parsed_files: ParsedFiles,
+    /// The datasets' prepared forms this process's evaluations may read (filled by the
+    /// workers' preparer).
+    pub prepared: Shelf,
     /// The datasets this process has loaded, by id. Each slot is filled once: requests that
     /// arrive while a dataset loads wait for that load instead of reading and hashing the
     /// folder again (a large dataset takes seconds and much memory per load).
@@ -87,6 +92,7 @@ impl App {
             store,
             boards,
             parsed_files: ParsedFiles::new(crate::datasets::parsed_files::DEFAULT_BUDGET),
+            prepared: Shelf::default(),
             config,
             role,
             wake: Notify::new(),

@@ -17,6 +17,14 @@ pub struct Config {
     /// dataset name, and never writes to it.
     #[arg(long, env = "POSEBOARD_DATASETS")]
     pub datasets: Option<PathBuf>,
+    /// Folder of the datasets' prepared forms (decoded depth and ground-truth renders, a
+    /// subfolder per dataset), which the workers of this process make in the background and
+    /// evaluate from once complete (default: DATA_DIR/prepared).
+    #[arg(long, env = "POSEBOARD_PREPARED_DIR")]
+    pub prepared_dir: Option<PathBuf>,
+    /// Prepare no dataset: every evaluation reads the dataset itself.
+    #[arg(long, env = "POSEBOARD_NO_PREPARE")]
+    pub no_prepare: bool,
     /// `postgres://...` to use PostgreSQL; default: SQLite in the data directory.
     #[arg(long, env = "DATABASE_URL", hide_env_values = true)]
     pub database_url: Option<String>,
@@ -155,6 +163,16 @@ impl Config {
         self.datasets
             .clone()
             .unwrap_or_else(|| self.data_dir.join("datasets"))
+    }
+
+    /// Where this process's workers keep the datasets' prepared forms; `None` when preparing is
+    /// turned off.
+    pub fn prepared_dir(&self) -> Option<PathBuf> {
+        (!self.no_prepare).then(|| {
+            self.prepared_dir
+                .clone()
+                .unwrap_or_else(|| self.data_dir.join("prepared"))
+        })
     }
 
     pub fn submissions_dir(&self) -> PathBuf {

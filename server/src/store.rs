@@ -32,6 +32,7 @@ pub mod groups;
 pub mod health;
 pub mod methods;
 pub mod pose_errors;
+pub mod preparations;
 pub mod queue;
 pub mod rescoring;
 pub mod scores;

@@ -13,7 +13,8 @@
 //!
 //! Split by concern: `pool` starts the workers and runs the claim loop, `job` runs one
 //! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding
-//! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says.
+//! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says;
+//! `preparation` prepares the datasets those evaluations read in the background.
 //! `challenge_deadlines` is the server's other background task: the snapshots at the
 //! challenges' deadlines.
 
@@ -22,6 +23,7 @@ mod evaluation;
 mod job;
 mod lease;
 mod pool;
+mod preparation;
 mod rescoring;
 mod retry;
 

@@ -1,5 +1,6 @@
-//! What anyone may list, signed in or not: the datasets served, the methods with a public
-//! submission, the latest public finished submissions. Plain reads, but they go through here
+//! What anyone may list, signed in or not: the datasets served (with how far each host has
+//! prepared them), the methods with a public submission, the latest public finished
+//! submissions. Plain reads, but they go through here
 //! like every other use case so that the web layer never reaches the store, and a rule added to
 //! a list (paging, a filter, who a method is shown to be) has one place to live.
 
@@ -12,14 +13,38 @@ use crate::error::AppResult;
 use crate::service::visibility;
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
+use crate::store::preparations::PreparationRow;
 use crate::store::submissions::RecentRow;
 
 /// How many submissions a page of the recent list (and its feed) holds.
 pub const RECENT_PER_PAGE: u32 = 50;
 
-/// The datasets served (not retired), by name.
-pub async fn datasets(app: &App) -> AppResult<Vec<DatasetRow>> {
-    Ok(app.store.datasets().await?)
+/// A served dataset with how far each evaluating host has prepared it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ServedDataset {
+    #[serde(flatten)]
+    pub dataset: DatasetRow,
+    /// One per host and prepared folder that has begun preparing it.
+    pub prepared: Vec<PreparationRow>,
+}
+
+/// The datasets served (not retired), by name, with their preparations.
+pub async fn datasets(app: &App) -> AppResult<Vec<ServedDataset>> {
+    let preparations = app.store.preparations().await?;
+    Ok(app
+        .store
+        .datasets()
+        .await?
+        .into_iter()
+        .map(|dataset| ServedDataset {
+            prepared: preparations
+                .iter()
+                .filter(|p| p.dataset_id == dataset.id)
+                .cloned()
+                .collect(),
+            dataset,
+        })
+        .collect())
 }
 
 /// The methods with a public submission, by name, as the public sees them (see

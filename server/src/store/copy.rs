@@ -22,6 +22,7 @@ pub(super) const TABLES: &[&str] = &[
     "team_members",
     "team_invitations",
     "datasets",
+    "dataset_preparations",
     "methods",
     "submissions",
     "submission_files",

@@ -1,7 +1,10 @@
 //! Evaluating one claimed submission on the evaluation threads, the same for a job and a
 //! re-scoring. A worker reads the uploaded file from the database and the dataset from its own
 //! copy, which must hash as the copy the server registered did: otherwise the work is refused,
-//! not failed, so that a worker with a bad copy spends no attempt of the user's.
+//! not failed, so that a worker with a bad copy spends no attempt of the user's. A 6D file is
+//! evaluated from the dataset's prepared form once this process has one complete and current
+//! (`datasets::prepared`), with the same scores to the bit; a file of the form refused by its
+//! check is computed from the dataset, said in the log, and handed to the preparer to rebuild.
 //!
 //! A BOP'22 2D file (its `task` a 2D one) is scored by `evaluator::coco` on the dataset's
 //! `scene_gt_coco.json`; its report is stored in `coco_scores`. A bop24 file is scored by
@@ -16,7 +19,7 @@ use std::time::Instant;
 use evaluator::coco;
 use evaluator::detection::{self, DetectionReport};
 use evaluator::protocol::{Protocol, ProtocolName};
-use evaluator::{Progress, bootstrap, evaluate as evaluate_protocol, results};
+use evaluator::{Progress, bootstrap, evaluate_prepared, results};
 
 use crate::app::{AppState, Role};
 use crate::datasets;
@@ -107,6 +110,15 @@ pub(super) async fn evaluate(
         Some(Task::Bop24) => return evaluate_bop24(app, &row, bytes, state).await,
         None => {}
     }
+    let prepared = app.prepared.current(row.id, &dataset_hash);
+    match &prepared {
+        Some(form) => {
+            tracing::info!(dataset = %row.name, folder = %form.dir().display(), "evaluating from the prepared form")
+        }
+        None => {
+            tracing::info!(dataset = %row.name, "evaluating from the dataset: no prepared form is ready")
+        }
+    }
     let protocols: Vec<ProtocolName> = job.protocols.clone();
     let (counter, started, cancel, taken) = (
         state.counter.clone(),
@@ -114,7 +126,8 @@ pub(super) async fn evaluate(
         state.cancel.clone(),
         state.taken_over.clone(),
     );
-    on_pool(app, move |clock| {
+    let form = prepared.clone();
+    let outcome = on_pool(app, move |clock| {
         let results =
             results::parse_results(&bytes[..]).map_err(|p| JobError::User(p.to_string()))?;
         let mut reports = Vec::with_capacity(protocols.len());
@@ -123,9 +136,15 @@ pub(super) async fn evaluate(
         for name in protocols {
             started.fetch_add(1, Ordering::Relaxed);
             let protocol = Protocol::named(name);
-            let mut evaluation =
-                evaluate_protocol(&dataset, &results, &protocol, counter.as_ref(), &cancel)
-                    .map_err(|e| ended(e, &taken))?;
+            let mut evaluation = evaluate_prepared(
+                &dataset,
+                &results,
+                &protocol,
+                form.as_deref(),
+                counter.as_ref(),
+                &cancel,
+            )
+            .map_err(|e| ended(e, &taken))?;
             errors.push(error_rows(name, &evaluation)?);
             let seed = bootstrap::dataset_seed(&evaluation.report.dataset);
             if let Some(b) = evaluation.bootstrap(seed, bootstrap::REPLICATES) {
@@ -141,7 +160,17 @@ pub(super) async fn evaluate(
             dataset_hash,
         }))
     })
-    .await
+    .await;
+    if let Some(form) = prepared {
+        let damaged = form.damaged();
+        for problem in &damaged {
+            tracing::warn!(dataset = %row.name, "prepared file refused, its image computed from the dataset: {problem}");
+        }
+        if !damaged.is_empty() {
+            app.prepared.report_damaged(row.id);
+        }
+    }
+    outcome
 }
 
 /// Runs `work` on the evaluation threads, never on the async ones, handing it the clock its

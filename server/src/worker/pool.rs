@@ -28,11 +28,15 @@ const REFUSAL_PAUSE: Duration = Duration::from_secs(300);
 /// How long the beats of workers no longer seen are kept (a starting worker forgets older ones).
 const BEATS_KEPT_MS: i64 = 7 * 24 * 3600 * 1000;
 
-/// Starts `app.config.workers` workers (none for `serve --workers 0`); each ends once
-/// `shutdown` is set, after giving back the job it was running.
+/// Starts `app.config.workers` workers (none for `serve --workers 0`), and the preparer of
+/// the datasets they evaluate; each ends once `shutdown` is set, a worker after giving back the
+/// job it was running.
 pub fn spawn_workers(app: &AppState, shutdown: &Shutdown) -> Vec<JoinHandle<()>> {
+    if app.config.workers == 0 {
+        return Vec::new();
+    }
     let refused = Arc::new(Refused::default());
-    (0..app.config.workers)
+    let mut handles: Vec<JoinHandle<()>> = (0..app.config.workers)
         .map(|n| {
             let worker = Worker {
                 app: app.clone(),
@@ -42,10 +46,13 @@ pub fn spawn_workers(app: &AppState, shutdown: &Shutdown) -> Vec<JoinHandle<()>>
             };
             tokio::spawn(async move { worker.run().await })
         })
-        .collect()
+        .collect();
+    handles.extend(super::preparation::spawn(app, shutdown));
+    handles
 }
 
-fn host_name() -> String {
+/// This machine's name, which worker ids and the preparations' records carry.
+pub(super) fn host_name() -> String {
     std::fs::read_to_string("/etc/hostname")
         .map(|h| h.trim().to_string())
         .ok()

@@ -45,7 +45,18 @@ pub(crate) fn views(base: &str, admin_token: &str, ids: &[i64]) -> Vec<(String, 
         .map(|p| {
             let r = get_as(&format!("{base}{p}"), admin_token);
             assert!(r.status().is_success(), "{p}: {}", r.status());
-            (p, r.json().expect("JSON"))
+            let mut view: Value = r.json().expect("JSON");
+            // How far each host has prepared the datasets is that host's, not the
+            // installation's: a moved installation prepares them again where it now runs.
+            if p == "/api/v1/datasets" {
+                for dataset in view["datasets"].as_array_mut().expect("datasets") {
+                    dataset
+                        .as_object_mut()
+                        .expect("a dataset")
+                        .remove("prepared");
+                }
+            }
+            (p, view)
         })
         .collect()
 }

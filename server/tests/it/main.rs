@@ -44,6 +44,7 @@ mod parallel_uploads;
 mod pinning;
 mod polish;
 mod prepare_cli;
+mod prepared_service;
 mod publishing;
 mod ranking;
 mod reader_pages;

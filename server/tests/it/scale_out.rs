@@ -1,8 +1,9 @@
 //! Scale-out against real PostgreSQL: `poseboard worker` processes that share nothing with the
-//! server but the database (each with an empty data directory and its own copy of the
-//! datasets) evaluate the queue, each job once and with `poseboard eval`'s scores, through
-//! worker crashes, a worker whose dataset copy differs, every connection of the database being
-//! terminated, and SIGTERM/SIGINT; and `serve --workers 0` evaluates nothing.
+//! server but the database (each with a data directory of its own, holding only its prepared
+//! datasets, and its own copy of the datasets) evaluate the queue, each job once and with
+//! `poseboard eval`'s scores, through worker crashes, a worker whose dataset copy differs,
+//! every connection of the database being terminated, and SIGTERM/SIGINT; and `serve --workers
+//! 0` evaluates nothing.
 
 use crate::common;
 
@@ -107,7 +108,7 @@ impl Drop for Proc {
 }
 
 /// Starts `poseboard worker` on the PostgreSQL database with its own datasets folder and data
-/// directory (which it must leave empty).
+/// directory (where it keeps nothing but its prepared datasets).
 fn worker(db: &TestDb, datasets: &Path, data: &Path, log: &Path, lease_secs: u32) -> Proc {
     let child = Command::new(BIN)
         .args(["worker", "--eval-threads", "1", "--lease-secs"])
@@ -278,7 +279,7 @@ impl Queued {
     }
 }
 
-/// Three workers with empty data directories evaluate 60 jobs queued by a server that is gone
+/// Three workers with data directories of their own evaluate 60 jobs queued by a server that is gone
 /// with its upload folder: each job once, with `poseboard eval`'s scores.
 #[test]
 fn three_workers_share_the_queue_of_a_stopped_server() {
@@ -349,9 +350,16 @@ fn three_workers_share_the_queue_of_a_stopped_server() {
         );
     }
     for (proc, own_data) in &workers {
-        let empty =
-            !own_data.exists() || std::fs::read_dir(own_data).expect("dir").next().is_none();
-        assert!(empty, "a worker wrote into its data directory");
+        let written: Vec<String> = match std::fs::read_dir(own_data) {
+            Ok(entries) => entries
+                .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+                .collect(),
+            Err(_) => Vec::new(),
+        };
+        assert!(
+            written.iter().all(|name| name == "prepared"),
+            "a worker wrote into its data directory more than its prepared datasets: {written:?}"
+        );
         assert!(!proc.log().contains("ERROR"), "{}", proc.log());
     }
 }

@@ -19,6 +19,7 @@ use server::store::board_rows::Whose;
 use server::store::datasets::DatasetRow;
 use server::store::methods::MethodMeta;
 use server::store::pose_errors::NewErrors;
+use server::store::preparations::{PreparationRow, PreparationState};
 use server::store::queue::Finished;
 use server::store::submissions::{Created, FairUse, Fault, NewSubmission, QueuePlace, Status};
 use server::store::{Store, StoreError};
@@ -1221,3 +1222,72 @@ fn dataset_groups(kind: Db) {
     });
 }
 both_databases!(dataset_groups);
+
+/// Each host's preparation of a dataset is one row per host and folder, written over as it
+/// goes, and listed by dataset; a state the service does not know is corruption.
+fn dataset_preparations(kind: Db) {
+    let dir = tempfile::tempdir().unwrap();
+    let db = TestDb::new(kind, "store_preparations");
+    run(async {
+        let (store, url) = store(kind, &db, dir.path()).await;
+        let a = store
+            .register_dataset(&dataset_row("synthA"))
+            .await
+            .unwrap();
+        let b = store
+            .register_dataset(&dataset_row("synthB"))
+            .await
+            .unwrap();
+        assert!(store.preparations().await.unwrap().is_empty());
+        let row = |dataset_id, host: &str, state, done, detail: Option<&str>| PreparationRow {
+            dataset_id,
+            host: host.to_string(),
+            folder: "/data/prepared".to_string(),
+            state,
+            images_done: done,
+            images_total: 8,
+            detail: detail.map(str::to_string),
+            updated_at: 0,
+        };
+        let waiting = Some("waiting for another process");
+        for saved in [
+            row(b.id, "m1", PreparationState::Preparing, 0, waiting),
+            row(a.id, "m2", PreparationState::Failed, 0, Some("no copy")),
+            row(a.id, "m1", PreparationState::Preparing, 3, None),
+            row(a.id, "m1", PreparationState::Ready, 8, None),
+        ] {
+            store.save_preparation(&saved).await.unwrap();
+        }
+        let listed = store.preparations().await.unwrap();
+        let key = |p: &PreparationRow| (p.dataset_id, p.host.clone(), p.state, p.images_done);
+        assert_eq!(
+            listed.iter().map(key).collect::<Vec<_>>(),
+            [
+                (a.id, "m1".to_string(), PreparationState::Ready, 8),
+                (a.id, "m2".to_string(), PreparationState::Failed, 0),
+                (b.id, "m1".to_string(), PreparationState::Preparing, 0),
+            ]
+        );
+        assert_eq!(listed[0].detail, None);
+        assert_eq!(listed[1].detail.as_deref(), Some("no copy"));
+        assert_eq!(listed[2].detail.as_deref(), waiting);
+        assert!(
+            listed
+                .iter()
+                .all(|p| p.updated_at > 0 && p.images_total == 8)
+        );
+
+        raw(
+            &url,
+            "UPDATE dataset_preparations SET state = 'paused' WHERE host = 'm2'",
+        )
+        .await;
+        match store.preparations().await {
+            Err(StoreError::Corrupt { column, value }) => {
+                assert_eq!((column, value.as_str()), ("state", "paused"))
+            }
+            other => panic!("expected a corrupt state, got {other:?}"),
+        }
+    });
+}
+both_databases!(dataset_preparations);

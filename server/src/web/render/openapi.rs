@@ -36,7 +36,7 @@ fn paths() -> Value {
             }
         },
         "paths": {
-            "/api/v1/datasets": { "get": { "summary": "Datasets served", "responses": { "200": { "description": "{datasets: [...]}" } } } },
+            "/api/v1/datasets": { "get": { "summary": "Datasets served, each with how far every evaluating host has prepared it", "responses": { "200": { "description": "{datasets: [{id, name, objects_count, scenes_count, images_count, targets_count, instances_count, image_width, image_height, added_at, retired, prepared}]}; prepared: one per host and prepared folder, {host, folder, state (preparing, ready, failed), images_done, images_total (0 while not counted), detail (why it failed, or what a preparation under way waits for; else null), updated_at}" } } } },
             "/api/v1/methods": { "get": { "summary": "Methods with public submissions", "responses": { "200": { "description": "{methods: [...]}" } } } },
             "/api/v1/submissions/{id}/pin": { "post": { "summary": "Make this submission its method's entry on its dataset (for every protocol it is scored under) instead of the best one; its owner or an administrator",
                 "security": [{ "bearer": [] }], "parameters": [id_param],

@@ -21,6 +21,7 @@ use crate::domain::{
     Onboarding, SnapshotId, SubmissionId, TrainingData, UploadTask, Visibility,
 };
 use crate::error::{AppError, AppResult};
+use crate::service::catalogue::ServedDataset;
 use crate::service::groups::{self, Group};
 use crate::service::leaderboard::Standing;
 use crate::service::submission_details::Owned;
@@ -29,6 +30,7 @@ use crate::service::submissions::quota::{self, Quota};
 use crate::service::{catalogue, methods, publishing};
 use crate::store::datasets::DatasetRow;
 use crate::store::methods::MethodRow;
+use crate::store::preparations::{PreparationRow, PreparationState};
 use crate::store::submissions::Fault;
 use crate::web::auth::Viewer;
 use crate::web::error::ErrorBody;
@@ -305,7 +307,7 @@ async fn leaderboard_page(
 #[derive(Template, WebTemplate)]
 #[template(path = "datasets.html")]
 struct DatasetsPage {
-    datasets: Vec<DatasetRow>,
+    datasets: Vec<ServedDataset>,
     /// The names of the core datasets.
     core: Vec<String>,
     /// For an administrator's browser: the CSRF token of the add, retire and core forms.
@@ -316,12 +318,34 @@ impl DatasetsPage {
     fn is_core(&self, name: &str) -> bool {
         self.core.iter().any(|c| c == name)
     }
+
+    /// One host's preparation in words: "preparing, 3 / 8 images", "ready, 8 images",
+    /// "failed: why".
+    fn preparation(&self, p: &PreparationRow) -> String {
+        let images = if p.images_total > 0 {
+            format!(", {} / {} images", p.images_done, p.images_total)
+        } else {
+            String::new()
+        };
+        match (p.state, &p.detail) {
+            (PreparationState::Preparing, Some(detail)) => format!("preparing{images} ({detail})"),
+            (PreparationState::Preparing, None) => format!("preparing{images}"),
+            (PreparationState::Ready, _) => format!("ready, {} images", p.images_total),
+            (PreparationState::Failed, detail) => {
+                format!(
+                    "failed: {}",
+                    detail.as_deref().unwrap_or("no reason recorded")
+                )
+            }
+        }
+    }
 }
 
 async fn datasets(State(app): State<AppState>, viewer: Viewer) -> AppResult<DatasetsPage> {
     let datasets = catalogue::datasets(&app).await?;
+    let rows: Vec<DatasetRow> = datasets.iter().map(|d| d.dataset.clone()).collect();
     Ok(DatasetsPage {
-        core: views::core_datasets(&datasets)
+        core: views::core_datasets(&rows)
             .into_iter()
             .map(|d| d.name)
             .collect(),
