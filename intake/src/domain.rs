@@ -339,6 +339,10 @@ macro_rules! word_enum {
     };
 }
 
+mod challenge;
+
+pub use challenge::{Award, ChallengeForm, ChallengeName, ChallengeSpec, ChallengeSlug};
+
 word_enum!(
     /// Who may see a submission: everyone (and the leaderboards), or its owner and the admins.
     Visibility, "visibility" { Public = "public", Private = "private" }

@@ -89,6 +89,12 @@ pub struct ServeConfig {
     pub bind: SocketAddr,
     #[command(flatten)]
     pub http: HttpConfig,
+    /// How often the server looks for challenges whose deadline has passed without their
+    /// snapshot, in seconds (it also looks as it starts); the snapshot is dated at the
+    /// deadline whenever it is taken.
+    #[arg(long, env = "POSEBOARD_CHALLENGE_CHECK_SECS", default_value_t = 30,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub challenge_check_secs: u64,
     #[command(flatten)]
     pub common: Config,
 }

@@ -3,5 +3,5 @@
 
 mod ids;
 
-pub use ids::{DatasetId, MethodId, SnapshotId, SubmissionId, TeamId, UserId};
+pub use ids::{ChallengeId, DatasetId, MethodId, SnapshotId, SubmissionId, TeamId, UserId};
 pub use intake::domain::*;

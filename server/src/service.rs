@@ -1,5 +1,5 @@
 //! The use cases: what a user, an administrator or the command line can do (accounts, teams,
-//! methods, submissions, publishing, moderation, re-scoring, snapshots), what each page reads (the
+//! methods, submissions, publishing, moderation, re-scoring, snapshots, challenges), what each page reads (the
 //! leaderboards and their ranking, a submission's details, the inspection of its targets, the
 //! public lists, an owner's downloads), each a function over the store that checks the rules of
 //! the benchmark. Handlers, the worker and the command line call these; this layer knows nothing
@@ -8,6 +8,7 @@
 
 pub mod accounts;
 pub mod catalogue;
+pub mod challenges;
 pub mod datasets;
 pub mod downloads;
 pub mod groups;

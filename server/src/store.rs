@@ -23,6 +23,7 @@ pub mod backup;
 pub mod board_rows;
 pub mod board_version;
 pub mod bop24_scores;
+pub mod challenges;
 pub mod coco_scores;
 pub mod copy;
 pub mod datasets;

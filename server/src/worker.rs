@@ -15,7 +15,10 @@
 //! evaluation job and `rescoring` one re-scoring, both evaluating with `evaluation`, holding
 //! their row with the one renew/cancel loop of `lease`, and retrying as `retry` says;
 //! `preparation` prepares the datasets those evaluations read in the background.
+//! `challenge_deadlines` is the server's other background task: the snapshots at the
+//! challenges' deadlines.
 
+mod challenge_deadlines;
 mod evaluation;
 mod job;
 mod lease;
@@ -24,4 +27,5 @@ mod preparation;
 mod rescoring;
 mod retry;
 
+pub use challenge_deadlines::spawn_deadline_watch;
 pub use pool::spawn_workers;

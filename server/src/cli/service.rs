@@ -14,6 +14,7 @@ use crate::domain::{Password, TokenLabel, UserName};
 use crate::service::accounts;
 use crate::shutdown::Shutdown;
 use crate::web::routes::deadlines::Deadlines;
+use crate::web::routes::snapshots::DeadlineBoards;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -111,6 +112,17 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         }
         crate::service::rescoring::flag_stale(&app.store).await?;
         let workers = crate::worker::spawn_workers(&app, &shutdown);
+        // The permalinks of the snapshots taken at deadlines: no request says the host then.
+        let site = match &app.config.public_url {
+            Some(url) => url.trim_end_matches('/').to_string(),
+            None => format!("http://{}", listener.local_addr()?),
+        };
+        let deadlines = crate::worker::spawn_deadline_watch(
+            &app,
+            DeadlineBoards::new(app.clone(), site),
+            &shutdown,
+            std::time::Duration::from_secs(args.config.challenge_check_secs),
+        );
         // Scripts and tests read this line to learn the port when binding to port 0.
         println!("poseboard listening on http://{}", listener.local_addr()?);
         tracing::info!(address = %listener.local_addr()?, "listening");
@@ -119,6 +131,7 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         let stop = shutdown.clone();
         crate::web::serve::serve(listener, router, &http, async move { stop.wait().await }).await;
         join_all(workers).await;
+        let _ = deadlines.await;
         Ok(())
     });
     // An evaluation cancelled on a signal stops at its next image; nothing waits for it.

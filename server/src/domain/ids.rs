@@ -74,6 +74,10 @@ id_type!(
     /// A team: accounts that submit methods together.
     TeamId
 );
+id_type!(
+    /// A challenge: boards with a deadline and awards.
+    ChallengeId
+);
 
 #[cfg(test)]
 mod tests {

@@ -47,7 +47,9 @@ pub async fn submission_action(
         | AdminAction::LeaveTeam
         | AdminAction::RemoveTeamMember
         | AdminAction::SaveGroup
-        | AdminAction::DeleteGroup => return Err(AppError::NotFound),
+        | AdminAction::DeleteGroup
+        | AdminAction::CreateChallenge
+        | AdminAction::OverrideAward => return Err(AppError::NotFound),
     };
     if !done {
         return Err(AppError::BadRequest(format!(

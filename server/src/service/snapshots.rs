@@ -61,7 +61,9 @@ pub async fn take(app: &App, actor: &User, boards: &impl Boards) -> AppResult<Sn
     app.store.snapshot(id).await?.ok_or(AppError::NotFound)
 }
 
-async fn render_every_board(
+/// Renders every board for snapshot `snapshot`, dated `taken_at` (a challenge's is dated at its
+/// deadline, whenever it is taken).
+pub(crate) async fn render_every_board(
     app: &App,
     boards: &impl Boards,
     snapshot: SnapshotId,

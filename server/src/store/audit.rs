@@ -41,6 +41,10 @@ pub enum AdminAction {
     SaveGroup,
     #[serde(rename = "delete group")]
     DeleteGroup,
+    #[serde(rename = "create challenge")]
+    CreateChallenge,
+    #[serde(rename = "override award")]
+    OverrideAward,
 }
 
 impl AdminAction {
@@ -59,6 +63,8 @@ impl AdminAction {
             AdminAction::RemoveTeamMember => "remove team member",
             AdminAction::SaveGroup => "save group",
             AdminAction::DeleteGroup => "delete group",
+            AdminAction::CreateChallenge => "create challenge",
+            AdminAction::OverrideAward => "override award",
         }
     }
 }
@@ -80,6 +86,8 @@ impl FromStr for AdminAction {
             AdminAction::RemoveTeamMember,
             AdminAction::SaveGroup,
             AdminAction::DeleteGroup,
+            AdminAction::CreateChallenge,
+            AdminAction::OverrideAward,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)

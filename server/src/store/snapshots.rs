@@ -3,7 +3,7 @@
 //! (scores, templates, the evaluator).
 
 use serde::Serialize;
-use sqlx::Row;
+use sqlx::{Any, Row, Transaction};
 
 use super::{Store, StoreResult, parse_column};
 use crate::domain::{BoardProtocol, SnapshotId, UserId};
@@ -50,6 +50,33 @@ pub struct SnapshotRow {
     pub boards: Vec<(BoardProtocol, String)>,
 }
 
+/// Stores every board of snapshot `id` and marks it complete, in the caller's transaction (a
+/// challenge's snapshot is recorded with the challenge in the same one).
+pub(super) async fn insert_boards(
+    tx: &mut Transaction<'static, Any>,
+    id: SnapshotId,
+    boards: &[SnapshotBoard],
+) -> StoreResult<()> {
+    for b in boards {
+        sqlx::query(
+            "INSERT INTO snapshot_boards (snapshot_id, protocol, dataset, format, gzip) \
+             VALUES ($1, $2, $3, $4, $5)",
+        )
+        .bind(id)
+        .bind(b.protocol.as_str())
+        .bind(&b.dataset)
+        .bind(b.format.as_str())
+        .bind(&b.gzip)
+        .execute(&mut **tx)
+        .await?;
+    }
+    sqlx::query("UPDATE snapshots SET complete = 1 WHERE id = $1")
+        .bind(id)
+        .execute(&mut **tx)
+        .await?;
+    Ok(())
+}
+
 impl Store {
     /// Starts a snapshot: its id (which its pages name) before its boards are rendered. It is
     /// shown nowhere until [`Store::complete_snapshot`].
@@ -71,23 +98,7 @@ impl Store {
         boards: &[SnapshotBoard],
     ) -> StoreResult<()> {
         let mut tx = self.write_transaction().await?;
-        for b in boards {
-            sqlx::query(
-                "INSERT INTO snapshot_boards (snapshot_id, protocol, dataset, format, gzip) \
-                 VALUES ($1, $2, $3, $4, $5)",
-            )
-            .bind(id)
-            .bind(b.protocol.as_str())
-            .bind(&b.dataset)
-            .bind(b.format.as_str())
-            .bind(&b.gzip)
-            .execute(&mut *tx)
-            .await?;
-        }
-        sqlx::query("UPDATE snapshots SET complete = 1 WHERE id = $1")
-            .bind(id)
-            .execute(&mut *tx)
-            .await?;
+        insert_boards(&mut tx, id, boards).await?;
         tx.commit().await?;
         Ok(())
     }

@@ -4,6 +4,7 @@ pub mod account;
 pub mod admin;
 pub mod api;
 pub mod boards;
+pub mod challenges;
 pub mod deadlines;
 pub mod docs;
 pub mod exports;
@@ -68,6 +69,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(rescoring::page_router())
         .merge(recent::page_router())
         .merge(teams::page_router())
+        .merge(challenges::page_router())
         .fallback(pages::not_found)
         .layer(axum::middleware::from_fn(pages::html_errors));
     Router::new()
@@ -76,6 +78,7 @@ pub fn router(app: AppState, deadlines: Deadlines) -> Router {
         .merge(targets::api_router())
         .merge(rescoring::api_router())
         .merge(teams::api_router())
+        .merge(challenges::api_router())
         .merge(admin::router(app.clone()))
         .merge(pages)
         .merge(static_files)

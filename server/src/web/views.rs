@@ -1,6 +1,7 @@
 //! The data behind each page, built once and rendered twice: as HTML by the templates and as
 //! JSON by the API, so that a page and its JSON twin can never disagree.
 
+pub mod challenges;
 pub mod targets;
 
 use std::collections::BTreeMap;

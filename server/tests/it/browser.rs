@@ -2,7 +2,8 @@
 //! the real server. A person's path through the site (register, sign in, create a token, upload
 //! through the form, watch the evaluation, find the score on the leaderboard), what a signed-out
 //! visitor cannot see, and the phone layout (at 390 px no page scrolls sideways). Screenshots of
-//! the main pages at desktop and phone width go to `target/screenshots/` (or
+//! the main pages at desktop and phone width (a challenge's page among them, after its
+//! deadline) go to `target/screenshots/` (or
 //! `$POSEBOARD_SCREENSHOTS`).
 //!
 //! The pages do not depend on the database kind, so this runs on SQLite only.
@@ -16,7 +17,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::common::{
-    BIN, Db, TestDb, cli_report, fixtures, reference_datasets, start, upload, wait_done,
+    BIN, Db, TestDb, admin_token, cli_report, fixtures, get_json, post_as, reference_datasets,
+    start, upload, wait_done,
 };
 use fantoccini::{Client, ClientBuilder, Locator};
 use serde_json::{Value, json};
@@ -498,6 +500,52 @@ async fn charts_are_legible(c: &Client, url: &str) {
     }
 }
 
+/// Creates the challenge `bop-browser` over a group of `synthA` (its deadline two seconds
+/// ahead) and waits until the server has taken its snapshot.
+fn challenge_past_its_deadline(base: &str, admin: &str) {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("clock")
+        .as_secs()
+        + 2;
+    let (days, rem) = (now / 86_400, now % 86_400);
+    // The date of `days` since 1970 (H. Hinnant's civil_from_days, for dates after 2000).
+    let z = days as i64 + 719_468;
+    let (era, doe) = (z / 146_097, z % 146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    let deadline = format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    );
+    // Over the one dataset the browser's entry covers (the wide one is core too).
+    let r = post_as(
+        &format!("{base}/api/v1/admin/groups"),
+        admin,
+        Some(json!({ "name": "synth-a", "datasets": ["synthA"] })),
+    );
+    assert!(r.status().is_success(), "{}", r.text().unwrap_or_default());
+    let r = post_as(
+        &format!("{base}/api/v1/admin/challenges"),
+        admin,
+        Some(
+            json!({ "slug": "bop-browser", "name": "BOP browser challenge", "tasks": ["bop19", "eccv18"], "groups": ["synth-a"], "deadline": deadline }),
+        ),
+    );
+    assert_eq!(r.status(), 201, "{}", r.text().unwrap_or_default());
+    let start = Instant::now();
+    while !get_json(&format!("{base}/api/v1/challenges/bop-browser"))["snapshot_id"].is_i64() {
+        assert!(start.elapsed() < Duration::from_secs(60), "no snapshot");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
 #[test]
 fn pages_work_in_a_real_browser() {
     let driver = start_driver();
@@ -507,7 +555,13 @@ fn pages_work_in_a_real_browser() {
     let data = dir.path().join("data");
     let db = TestDb::new(Db::Sqlite, "browser");
     // No worker in the server: the test starts one once it has seen its upload wait in the queue.
-    let server = start(&data, &datasets, &db, &["--no-demo", "--workers", "0"]);
+    // Deadlines looked at every second: the challenge's page is seen with its awards decided.
+    let server = start(
+        &data,
+        &datasets,
+        &db,
+        &["--no-demo", "--workers", "0", "--challenge-check-secs", "1"],
+    );
     // Public scored submissions on the wide dataset, 6D and 2D (queued now, scored by that
     // worker), so that its boards have their widest tables: a column per object, the 2D stats.
     let wide_ids: Vec<i64> = wide_files
@@ -658,6 +712,14 @@ fn pages_work_in_a_real_browser() {
             "the board's score"
         );
 
+        // A challenge over the published entry, its deadline two seconds ahead: its page is
+        // seen (below) once the snapshot is taken and the awards decided.
+        let boss = admin_token(&data, &db, "boss");
+        let (base_owned, boss_owned) = (base.to_string(), boss.clone());
+        tokio::task::spawn_blocking(move || challenge_past_its_deadline(&base_owned, &boss_owned))
+            .await
+            .expect("the challenge's snapshot is taken");
+
         // A private upload: its owner sees it, a signed-out visitor finds it nowhere.
         let hidden = upload_form(&c, base, "hidden-net", &private_file, false).await;
         watch_until_done(&c).await;
@@ -724,6 +786,7 @@ fn pages_work_in_a_real_browser() {
                 format!("{base}/leaderboards/bop19?objects=unseen&onboarding=model-based"),
             ),
             ("groups", format!("{base}/groups")),
+            ("challenge", format!("{base}/challenges/bop-browser")),
         ];
         for (width, kind) in [(DESKTOP, "desktop"), (PHONE, "phone")] {
             page_width(&c, width).await;

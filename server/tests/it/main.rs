@@ -19,6 +19,7 @@ mod bop24;
 mod bop24_cli;
 mod browser;
 mod challenge_datasets;
+mod challenges;
 mod coco_boards;
 mod coco_cli;
 mod coco_service;

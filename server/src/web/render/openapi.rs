@@ -262,6 +262,9 @@ fn paths() -> Value {
     if let (Some(paths), Value::Object(teams)) = (doc["paths"].as_object_mut(), teams()) {
         paths.extend(teams);
     }
+    if let (Some(paths), Value::Object(challenges)) = (doc["paths"].as_object_mut(), challenges()) {
+        paths.extend(challenges);
+    }
     // Here rather than with the upload's other fields, for the same recursion limit.
     let upload = "/paths/~1api~1v1~1submissions/post/requestBody/content/multipart~1form-data/schema/properties";
     if let Some(Value::Object(fields)) = doc.pointer_mut(upload) {
@@ -299,6 +302,38 @@ fn teams() -> Value {
         "/api/v1/teams/{name}/members/{user}/remove": { "post": { "summary": "Remove a member from the team (its creator or an administrator; written to the audit log)",
             "security": [{ "bearer": [] }], "parameters": [name_param, user_param],
             "responses": { "200": { "description": "{ok, team, removed}" }, "403": { "description": "a member who did not create the team" }, "404": { "description": "not one of your teams, or the account is not a member" } } } }
+    })
+}
+
+/// The challenge routes (see `crate::service::challenges`).
+fn challenges() -> Value {
+    let slug_param = json!({ "name": "slug", "in": "path", "required": true, "schema": { "type": "string" }, "description": "the challenge's slug" });
+    json!({
+        "/api/v1/challenges": { "get": { "summary": "Every challenge, the latest deadline first (the page /challenges)",
+            "responses": { "200": { "description": "{challenges: [{slug, name, tasks, groups, objects, onboarding, deadline (epoch ms), deadline_utc (RFC 3339), closed, fast_seconds, awards, snapshot_id (null until taken), url, json_url}]}" } } } },
+        "/api/v1/challenges/{slug}": { "get": { "summary": "A challenge (the page /challenges/{slug}): its fields as listed, its boards as they stand (each task over each group: {protocol, group, columns, url of the live board, rows: [{rank, method_id, method, owner, average, time, after_deadline}]}), `snapshot_id` and `snapshot_url` once the deadline's snapshot is taken, and `awards` decided on the boards at the deadline: [{task, award, title, rule, winner: {method_id, method, owner, average} or null, override: {note, by, at} or null}] (empty before the deadline)",
+            "parameters": [slug_param.clone()],
+            "responses": { "200": { "description": "the challenge" }, "404": { "description": "no challenge of that slug" } } } },
+        "/api/v1/admin/challenges": { "post": { "summary": "Create a challenge (administrators; audited). At its deadline the service takes a snapshot of every board by itself, dated at the deadline (at the next start if no server runs then), once whatever the number of servers, and decides the awards",
+            "security": [{ "bearer": [] }],
+            "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["slug", "name", "tasks", "deadline"], "properties": {
+                "slug": { "type": "string", "maxLength": 60, "description": "lowercase letters, digits and `-`: its address /challenges/SLUG" },
+                "name": { "type": "string", "maxLength": 200 },
+                "tasks": { "type": "array", "items": { "type": "string", "enum": ["bop19", "eccv18", "bop24", "bop22-det", "bop22-seg"] } },
+                "groups": { "type": "array", "items": { "type": "string" }, "description": "dataset groups (see /api/v1/groups); default: core. The awards are decided on the first" },
+                "deadline": { "type": "string", "format": "date-time", "description": "RFC 3339 with its offset, in the future" },
+                "objects": { "type": "string", "enum": ["", "seen", "unseen"], "description": "the categories filter of its boards" },
+                "onboarding": { "type": "string", "enum": ["", "model-based", "model-free"] },
+                "fast_seconds": { "type": "number", "exclusiveMinimum": 0, "default": 1, "description": "mean time per image under which a method is fast" },
+                "awards": { "type": "array", "items": { "type": "string", "enum": ["overall", "rgb-only", "fast", "open-source", "single-model", "synthetic", "default-detections"] }, "description": "default: every award" } } } } } },
+            "responses": { "201": { "description": "{challenge} as listed" }, "400": { "description": "a field that does not parse: {error} names it" }, "404": { "description": "not an administrator" }, "409": { "description": "a challenge of that slug exists" } } } },
+        "/api/v1/admin/challenges/{slug}/awards": { "post": { "summary": "Override an award of a closed challenge (administrators; audited): the page shows the note next to the rule",
+            "security": [{ "bearer": [] }], "parameters": [slug_param],
+            "requestBody": { "required": true, "content": { "application/json": { "schema": { "type": "object", "required": ["task", "award", "note"], "properties": {
+                "task": { "type": "string" }, "award": { "type": "string" },
+                "method_id": { "type": ["integer", "null"], "description": "a method on the task's board at the deadline; null: not awarded" },
+                "note": { "type": "string", "maxLength": 1000 } } } } } },
+            "responses": { "200": { "description": "the challenge, as GET /api/v1/challenges/{slug}" }, "400": { "description": "a field that does not parse: {error} names it" }, "404": { "description": "no such challenge, or not an administrator" }, "409": { "description": "the deadline's snapshot is not taken yet" } } } }
     })
 }
 

@@ -1,5 +1,5 @@
 //! What administrators do: hide, delete and re-run submissions, add and retire datasets, save
-//! and delete dataset groups, from the API and from buttons on the pages. Every action is written to the audit log. To anyone
+//! and delete dataset groups, create challenges and override their awards, from the API and from buttons on the pages. Every action is written to the audit log. To anyone
 //! else these routes answer as if they did not exist, whatever the method and body.
 
 use axum::extract::{Form, FromRequestParts, Path, Request, State};
@@ -12,13 +12,15 @@ use serde::Deserialize;
 use serde_json::json;
 
 use crate::app::AppState;
-use crate::domain::SubmissionId;
+use crate::domain::{ChallengeForm, FieldError, MethodId, SubmissionId};
 use crate::error::{AppError, AppResult};
+use crate::service::challenges::{self, OverrideRequest};
 use crate::service::{groups, moderation};
 use crate::store::accounts::User;
 use crate::store::audit::AdminAction;
 use crate::web::auth::Viewer;
 use crate::web::routes::{pages, snapshots};
+use crate::web::views::challenges::{ChallengeSummary, ChallengeView, challenge_url};
 
 pub fn router(app: AppState) -> Router<AppState> {
     Router::new()
@@ -36,6 +38,13 @@ pub fn router(app: AppState) -> Router<AppState> {
         .route("/api/v1/admin/groups/{name}", delete(api_delete_group))
         .route("/api/v1/admin/audit", get(api_audit))
         .route("/api/v1/admin/snapshots", post(api_take_snapshot))
+        .route("/api/v1/admin/challenges", post(api_create_challenge))
+        .route(
+            "/api/v1/admin/challenges/{slug}/awards",
+            post(api_override_award),
+        )
+        .route("/admin/challenges", post(page_create_challenge))
+        .route("/admin/challenges/{slug}/awards", post(page_override_award))
         .route(
             "/admin/submissions/{id}/{action}",
             post(page_submission_action),
@@ -303,4 +312,153 @@ async fn api_take_snapshot(
     let actor = admin(&viewer)?;
     let entry = snapshots::take(&app, actor, &pages::site_url(&app, &headers)).await?;
     Ok((StatusCode::CREATED, Json(entry)).into_response())
+}
+
+/// A challenge as the API sends it: `{slug, name, tasks, groups, deadline}` and optionally
+/// `objects`, `onboarding`, `fast_seconds` and `awards`. 201 with the challenge.
+async fn api_create_challenge(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Json(form): Json<ChallengeForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    let row = challenges::create(&app, actor, form.parse()?).await?;
+    let challenge = ChallengeSummary::from(&row);
+    Ok((StatusCode::CREATED, Json(json!({ "challenge": challenge }))).into_response())
+}
+
+/// The form of the challenges page: lists as words separated by spaces or commas.
+#[derive(Deserialize)]
+struct ChallengeFormText {
+    #[serde(default)]
+    slug: String,
+    #[serde(default)]
+    name: String,
+    #[serde(default)]
+    tasks: String,
+    #[serde(default)]
+    groups: String,
+    #[serde(default)]
+    deadline: String,
+    #[serde(default)]
+    objects: String,
+    #[serde(default)]
+    onboarding: String,
+    #[serde(default)]
+    fast_seconds: String,
+    #[serde(default)]
+    awards: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+/// Words separated by spaces or commas.
+fn words(text: &str) -> Vec<String> {
+    text.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|w| !w.is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
+async fn page_create_challenge(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Form(f): Form<ChallengeFormText>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    let fast_seconds = match f.fast_seconds.trim() {
+        "" => None,
+        text => Some(text.parse::<f64>().map_err(|_| FieldError {
+            field: "fast_seconds",
+            problem: format!("must be a number of seconds, not `{text}`"),
+        })?),
+    };
+    let awards = words(&f.awards);
+    let form = ChallengeForm {
+        slug: f.slug,
+        name: f.name,
+        tasks: words(&f.tasks),
+        groups: words(&f.groups),
+        deadline: f.deadline,
+        objects: f.objects,
+        onboarding: f.onboarding,
+        fast_seconds,
+        awards: (!awards.is_empty()).then_some(awards),
+    };
+    let row = challenges::create(&app, actor, form.parse()?).await?;
+    Ok(Redirect::to(&challenge_url(&row.slug)).into_response())
+}
+
+/// An override of an award: the task and award, the method it goes to (none: not awarded)
+/// and the note saying why.
+#[derive(Deserialize)]
+struct OverrideBody {
+    #[serde(default)]
+    task: String,
+    #[serde(default)]
+    award: String,
+    method_id: Option<MethodId>,
+    #[serde(default)]
+    note: String,
+}
+
+async fn api_override_award(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(slug): Path<String>,
+    Json(o): Json<OverrideBody>,
+) -> AppResult<Json<ChallengeView>> {
+    let actor = admin(&viewer)?;
+    let request = OverrideRequest {
+        task: o.task,
+        award: o.award,
+        method_id: o.method_id,
+        note: o.note,
+    };
+    Ok(Json(
+        challenges::override_award(&app, actor, &slug, request)
+            .await?
+            .into(),
+    ))
+}
+
+#[derive(Deserialize)]
+struct OverrideForm {
+    #[serde(default)]
+    task: String,
+    #[serde(default)]
+    award: String,
+    /// A method id; empty: not awarded.
+    #[serde(default)]
+    method_id: String,
+    #[serde(default)]
+    note: String,
+    #[serde(default)]
+    csrf: String,
+}
+
+async fn page_override_award(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path(slug): Path<String>,
+    Form(f): Form<OverrideForm>,
+) -> AppResult<Response> {
+    let actor = admin(&viewer)?;
+    viewer.check_csrf(&f.csrf)?;
+    let method_id = match f.method_id.trim() {
+        "" => None,
+        text => Some(text.parse::<MethodId>().map_err(|_| FieldError {
+            field: "method_id",
+            problem: format!("must be a method id, not `{text}`"),
+        })?),
+    };
+    let request = OverrideRequest {
+        task: f.task,
+        award: f.award,
+        method_id,
+        note: f.note,
+    };
+    let c = challenges::override_award(&app, actor, &slug, request).await?;
+    Ok(Redirect::to(&challenge_url(&c.row.slug)).into_response())
 }

@@ -124,6 +124,30 @@ pub(crate) async fn take(app: &App, actor: &User, site: &str) -> AppResult<Snaps
         .into())
 }
 
+/// The live boards as the service snapshots them by itself at a challenge's deadline, with
+/// permalinks at `site`: owned, for the background task that watches the deadlines.
+pub struct DeadlineBoards {
+    app: AppState,
+    site: String,
+}
+
+impl DeadlineBoards {
+    pub fn new(app: AppState, site: String) -> DeadlineBoards {
+        DeadlineBoards { app, site }
+    }
+}
+
+impl Boards for DeadlineBoards {
+    async fn render(&self, board: &Board<'_>) -> AppResult<Rendered> {
+        LiveBoards {
+            app: &self.app,
+            site: &self.site,
+        }
+        .render(board)
+        .await
+    }
+}
+
 /// The live boards, rendered as a snapshot keeps them.
 struct LiveBoards<'a> {
     app: &'a App,
