@@ -98,6 +98,13 @@ impl std::fmt::Display for Chain<'_> {
     }
 }
 
+/// An error and its causes, outermost first.
+fn causes<'a>(
+    e: &'a (dyn std::error::Error + 'static),
+) -> impl Iterator<Item = &'a (dyn std::error::Error + 'static)> {
+    std::iter::successors(Some(e), |e| e.source())
+}
+
 /// A size in bytes as people say it: `64 MiB`, `512 KiB`, `100 bytes`.
 fn size(bytes: u64) -> String {
     match bytes {
@@ -167,16 +174,27 @@ impl AppError {
     pub fn is_unavailable(&self) -> bool {
         match self {
             AppError::Store(e) => e.is_transient(),
-            AppError::Failed { source, .. } => {
-                let mut cause: Option<&(dyn std::error::Error + 'static)> = Some(source.as_ref());
-                while let Some(e) = cause {
-                    if let Some(store) = e.downcast_ref::<StoreError>() {
-                        return store.is_transient();
-                    }
-                    cause = e.source();
-                }
-                false
-            }
+            AppError::Failed { source, .. } => causes(source.as_ref())
+                .find_map(|e| e.downcast_ref::<StoreError>())
+                .is_some_and(StoreError::is_transient),
+            _ => false,
+        }
+    }
+
+    /// Out of disk space: the database's disk (see [`StoreError::is_storage_full`]) or the
+    /// data directory's (`ENOSPC` writing an upload's temporary file), looked for in the cause
+    /// of a [`AppError::Failed`] as well. The request kept nothing: the write refused was a
+    /// transaction, rolled back whole, or a temporary file, removed as the error unwinds.
+    pub fn is_storage_full(&self) -> bool {
+        match self {
+            AppError::Store(e) => e.is_storage_full(),
+            AppError::Io(e) => e.kind() == std::io::ErrorKind::StorageFull,
+            AppError::Failed { source, .. } => causes(source.as_ref()).any(|e| {
+                e.downcast_ref::<StoreError>()
+                    .is_some_and(StoreError::is_storage_full)
+                    || e.downcast_ref::<std::io::Error>()
+                        .is_some_and(|io| io.kind() == std::io::ErrorKind::StorageFull)
+            }),
             _ => false,
         }
     }

@@ -124,6 +124,20 @@ impl StoreError {
             _ => false,
         }
     }
+
+    /// Whether the database's disk is full: PostgreSQL's `disk_full` (SQLSTATE 53100) or
+    /// SQLite's `SQLITE_FULL` (13). Not transient, since trying again at once fails the same
+    /// way, and not a bug: the write was refused whole (the transaction rolled back), so the
+    /// service answers that it is out of room rather than that it broke.
+    pub fn is_storage_full(&self) -> bool {
+        let StoreError::Database(sqlx::Error::Database(d)) = self else {
+            return false;
+        };
+        d.code().is_some_and(|code| {
+            code == "53100"
+                || (code.len() <= 4 && code.parse::<i64>().is_ok_and(|n| n & 0xff == 13))
+        })
+    }
 }
 
 pub type StoreResult<T> = Result<T, StoreError>;

@@ -8,6 +8,12 @@
 //! failure, then one line when requests succeed again) instead of once per request, which
 //! during an outage would bury the log. The outage is process-wide, as the pool is, so its
 //! count lives in a static rather than in each request's state.
+//!
+//! A full disk (the data directory's or the database's) is not the request's fault either, but
+//! it does not pass by itself: it answers `507 Insufficient Storage` saying that nothing was
+//! stored, so an uploader knows the refusal is the service's and that no half of the upload
+//! stayed behind, and every such refusal is logged with its cause for the operator who must
+//! make room.
 
 use axum::Json;
 use axum::http::StatusCode;
@@ -66,6 +72,9 @@ impl AppError {
         if self.is_unavailable() {
             return StatusCode::SERVICE_UNAVAILABLE;
         }
+        if self.is_storage_full() {
+            return StatusCode::INSUFFICIENT_STORAGE;
+        }
         match self {
             AppError::NotFound | AppError::Unknown(_) | AppError::NotHere { .. } => {
                 StatusCode::NOT_FOUND
@@ -90,6 +99,10 @@ impl AppError {
         let error = if status == StatusCode::SERVICE_UNAVAILABLE {
             "the database is unavailable for a moment: nothing was changed, try again in a few \
              seconds"
+                .to_string()
+        } else if status == StatusCode::INSUFFICIENT_STORAGE {
+            "the service has run out of disk space: nothing was stored, try again once its \
+             operators have made room"
                 .to_string()
         } else if status.is_server_error() {
             "internal error: the service could not complete the request".to_string()
@@ -141,6 +154,11 @@ impl IntoResponse for AppError {
                     "the database is unavailable: answering 503 until it is back"
                 );
             }
+        } else if status == StatusCode::INSUFFICIENT_STORAGE {
+            tracing::error!(
+                error = %Chain(&self),
+                "out of disk space: the request was refused and nothing of it kept"
+            );
         } else if status.is_server_error() {
             tracing::error!(error = %Chain(&self), "request failed");
         }
@@ -304,6 +322,52 @@ mod tests {
             value: "??".into(),
         });
         assert_eq!(corrupt.status(), StatusCode::INTERNAL_SERVER_ERROR);
+    }
+
+    /// A write refused for want of room, as a real SQLite file refuses it: its pages capped
+    /// (`max_page_count`), which SQLite reports as it reports a full disk, `SQLITE_FULL`.
+    fn sqlite_full() -> StoreError {
+        use sqlx::Connection;
+        let dir = tempfile::tempdir().expect("tmp");
+        let url = format!("sqlite://{}?mode=rwc", dir.path().join("full.db").display());
+        sqlx::any::install_default_drivers();
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime")
+            .block_on(async {
+                let mut conn = sqlx::AnyConnection::connect(&url).await.expect("sqlite");
+                for sql in ["CREATE TABLE t (x BLOB)", "PRAGMA max_page_count = 4"] {
+                    sqlx::query(sql).execute(&mut conn).await.expect("set-up");
+                }
+                let refused = sqlx::query("INSERT INTO t VALUES (zeroblob(100000))")
+                    .execute(&mut conn)
+                    .await
+                    .expect_err("the database is full");
+                StoreError::from(refused)
+            })
+    }
+
+    #[test]
+    fn a_full_disk_answers_507_saying_nothing_was_stored() {
+        let full = sqlite_full();
+        assert!(full.is_storage_full() && !full.is_transient(), "{full}");
+        let no_space = || std::io::Error::from(std::io::ErrorKind::StorageFull);
+        let errors = [
+            AppError::Store(full),
+            AppError::Io(no_space()),
+            AppError::failed("unpacking a zip archive", no_space()),
+        ];
+        for error in errors {
+            let response = error.into_response();
+            assert_eq!(response.status(), StatusCode::INSUFFICIENT_STORAGE);
+            let body = response.extensions().get::<ErrorBody>().expect("body");
+            assert!(body.error.contains("nothing was stored"), "{}", body.error);
+            assert!(body.retry_at.is_none());
+        }
+        // Any other fault of the disk is a fault of the service.
+        let other = AppError::Io(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        assert_eq!(other.status(), StatusCode::INTERNAL_SERVER_ERROR);
     }
 
     #[test]

@@ -168,13 +168,14 @@ fn a_backup_restores_the_installation_it_was_taken_of(kind: Db) {
     }
 
     if matches!(kind, Db::Postgres) {
-        pg_dump_and_restore(&db, &data, &datasets, &root, &ids, &before);
+        pg_dump_and_restore(&db, &data, &datasets, &root, &ids, &before, &before_pages);
     }
 }
 both_databases!(a_backup_restores_the_installation_it_was_taken_of);
 
 /// The README's PostgreSQL commands, run as written: `pg_dump --format=custom` of the live
-/// database and `pg_restore --no-owner` into an empty one give the same service.
+/// database and `pg_restore --no-owner` into an empty one give the same service, its boards'
+/// pages the same byte for byte.
 fn pg_dump_and_restore(
     db: &TestDb,
     data: &Path,
@@ -182,6 +183,7 @@ fn pg_dump_and_restore(
     root: &str,
     ids: &[i64],
     before: &[(String, Value)],
+    before_pages: &[(String, String)],
 ) {
     let dump = data.join("poseboard.dump");
     let url = db.url().expect("PostgreSQL");
@@ -212,5 +214,8 @@ fn pg_dump_and_restore(
     let after = views(&server.base, root, ids);
     for ((path, a), (_, b)) in before.iter().zip(&after) {
         assert_eq!(a, b, "{path} differs after pg_restore");
+    }
+    for ((path, a), (_, b)) in before_pages.iter().zip(&pages(&server.base)) {
+        assert_eq!(a, b, "the page {path} differs after pg_restore");
     }
 }

@@ -101,6 +101,15 @@ impl TestDb {
         self.url.clone()
     }
 
+    /// A database the test made elsewhere (a PostgreSQL cluster of its own, a SQLite file on a
+    /// disk of its own), reached at `url` and left as it is afterwards: its owner removes it.
+    pub fn at(url: String) -> TestDb {
+        TestDb {
+            url: Some(url),
+            drop_sql: None,
+        }
+    }
+
     pub fn new(kind: Db, name: &str) -> TestDb {
         match kind {
             Db::Sqlite => TestDb {
@@ -616,4 +625,42 @@ pub fn admin_token(data_dir: &Path, db: &TestDb, name: &str) -> String {
         ],
     );
     admin(data_dir, db, &["create-token", name])
+}
+
+/// A synthetic dataset `name` of `scenes` scenes of `images` images each, made by `poseboard
+/// dataset synth` in `dir/datasets`, with the result files `dataset demo-results` writes for it
+/// in `dir/results`: returns the datasets folder and the result files.
+pub fn synth_with_results(
+    dir: &Path,
+    name: &str,
+    scenes: u32,
+    images: u32,
+) -> (PathBuf, Vec<PathBuf>) {
+    let datasets = dir.join("datasets");
+    let dataset = datasets.join(name);
+    let results = dir.join("results");
+    let (scenes, images) = (scenes.to_string(), images.to_string());
+    let status = Command::new(BIN)
+        .args(["dataset", "synth", "--scenes", &scenes])
+        .args(["--images-per-scene", &images])
+        .arg(&dataset)
+        .stdout(Stdio::null())
+        .status()
+        .expect("synth runs");
+    assert!(status.success(), "dataset synth");
+    let status = Command::new(BIN)
+        .args(["dataset", "demo-results"])
+        .arg(&dataset)
+        .arg(&results)
+        .stdout(Stdio::null())
+        .status()
+        .expect("demo-results runs");
+    assert!(status.success(), "dataset demo-results");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&results)
+        .expect("results")
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .collect();
+    files.sort();
+    (datasets, files)
 }

@@ -104,7 +104,8 @@ fn paths() -> Value {
                         "400": { "description": "a missing or bad field" },
                         "413": { "description": "the upload is larger than the limit (the message states it): {error, limit_bytes}" },
                         "422": { "description": "a file is not a valid result file, or is named for another dataset than the field says, or a zip holds other entries than result files, unpacks beyond the upload limit or holds too many entries; nothing is submitted: {error, problems: [{file, line, message}]}" },
-                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it and when the next is allowed, as a UTC date and time): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" }
+                        "429": { "description": "over the fair-use limit of submissions per dataset (the message states it and when the next is allowed, as a UTC date and time): nothing of the upload is submitted; {error, retry_at}, and a Retry-After header" },
+                        "507": { "description": "the service's disk (its data directory's or its database's) is full: nothing of the upload was stored (no submission, no file); {error}" }
                     }
                 }
             },

@@ -103,7 +103,14 @@ pub async fn read_upload(
                 )));
             }
             let used: u64 = files.iter().map(|f| f.size).sum();
-            let file = save_file(app, field, limit - used, limit).await?;
+            let file = match save_file(app, field, limit - used, limit).await {
+                Ok(file) => file,
+                Err(e) if e.is_storage_full() => {
+                    drain(multipart).await;
+                    return Err(e);
+                }
+                Err(e) => return Err(e),
+            };
             // A browser sends an empty file field when no file is chosen.
             if !(file.size == 0 && file.name.is_empty()) {
                 files.push(file);
@@ -117,6 +124,16 @@ pub async fn read_upload(
         }
     }
     Ok((fields, files))
+}
+
+/// Reads the rest of a multipart body and drops it. An answer given while the client still
+/// sends makes the server close the connection on unread bytes, which the client sees as a
+/// reset instead of the answer: an upload refused for want of disk space (a fault of the
+/// service, within the size limit) is read to its end, so its sender learns why.
+async fn drain(mut multipart: Multipart) {
+    while let Ok(Some(mut field)) = multipart.next_field().await {
+        while let Ok(Some(_)) = field.chunk().await {}
+    }
 }
 
 /// A malformed or oversized multipart body as the answer it gets.
