@@ -8,8 +8,8 @@
 //!
 //! Every sample interval it records the server's (and on PostgreSQL the worker's) resident
 //! memory and open files, the database connections (PostgreSQL: `pg_stat_activity` rows of the
-//! service's database; SQLite: the server's descriptors of the database files), and the
-//! requests done, refused as intended (422, 413, 429, 401) and failed, per kind. It prints
+//! service's database; SQLite: the server's descriptors of the database files; both counted
+//! as the least of a few readings, see [`READINGS`]), and the requests done, refused as intended (422, 413, 429, 401) and failed, per kind. It prints
 //! them, writes `soak.csv`, `kinds.csv`, `failures.txt` and the plot `soak.svg`, and at the end
 //! checks that memory, open files and connections are within 10 % of the reference sample (the
 //! tenth minute, or 1/6 of a shorter run), that nothing failed other than the intended
@@ -1345,27 +1345,56 @@ impl Sample {
     }
 }
 
+/// Readings per sample: open files and connections are counted this many times, 100 ms apart,
+/// and the least count is kept. A leak raises that floor; a descriptor open for an instant (a
+/// request's socket, a temporary file, a connection the pool is just replacing) does not, and
+/// on SQLite, whose counts are a handful, one such descriptor would be a 10 % change.
+const READINGS: usize = 5;
+
 async fn sample(
     tally: &Tally,
     at: Duration,
     watched: &Watched,
-    pg: Option<&mut sqlx::PgConnection>,
+    mut pg: Option<&mut sqlx::PgConnection>,
 ) -> Res<Sample> {
-    let db = match (pg, &watched.postgres) {
-        (Some(conn), Some((_, name))) => {
-            let n: i64 =
-                sqlx::query_scalar("SELECT count(*) FROM pg_stat_activity WHERE datname = $1")
-                    .bind(name)
-                    .fetch_one(conn)
-                    .await?;
-            n as u64
+    let mut floor: Option<(u64, u64, Option<u64>)> = None;
+    for reading in 0..READINGS {
+        if reading > 0 {
+            tokio::time::sleep(Duration::from_millis(100)).await;
         }
-        _ => sqlite_fds(watched.server)?,
-    };
+        let db = match (pg.as_deref_mut(), &watched.postgres) {
+            (Some(conn), Some((_, name))) => {
+                let n: i64 =
+                    sqlx::query_scalar("SELECT count(*) FROM pg_stat_activity WHERE datname = $1")
+                        .bind(name)
+                        .fetch_one(conn)
+                        .await?;
+                n as u64
+            }
+            _ => sqlite_fds(watched.server)?,
+        };
+        let server = proc_stat(watched.server)?.fds;
+        let worker = watched.worker.map(proc_stat).transpose()?.map(|w| w.fds);
+        floor = Some(match floor {
+            None => (db, server, worker),
+            Some((d, s, w)) => (
+                d.min(db),
+                s.min(server),
+                w.zip(worker).map(|(a, b)| a.min(b)),
+            ),
+        });
+    }
+    let (db, server_fds, worker_fds) = floor.ok_or("no reading")?;
+    let mut server = proc_stat(watched.server)?;
+    server.fds = server_fds;
+    let mut worker = watched.worker.map(proc_stat).transpose()?;
+    if let (Some(w), Some(fds)) = (worker.as_mut(), worker_fds) {
+        w.fds = fds;
+    }
     Ok(Sample {
         at,
-        server: proc_stat(watched.server)?,
-        worker: watched.worker.map(proc_stat).transpose()?,
+        server,
+        worker,
         db,
         kinds: tally.kinds(),
         evaluated: tally.evaluated.load(Ordering::Relaxed),
