@@ -341,7 +341,7 @@ macro_rules! word_enum {
 
 mod challenge;
 
-pub use challenge::{Award, ChallengeForm, ChallengeName, ChallengeSpec, ChallengeSlug};
+pub use challenge::{Award, ChallengeForm, ChallengeName, ChallengeSlug, ChallengeSpec};
 
 word_enum!(
     /// Who may see a submission: everyone (and the leaderboards), or its owner and the admins.
