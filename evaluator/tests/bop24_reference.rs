@@ -273,7 +273,7 @@ fn the_verdicts_add_up_to_the_scores() {
                     )
                     .unwrap()
                     .verdicts(ds, &criterion);
-                    assert_eq!(alone, [first.clone()], "{label}");
+                    assert_eq!(alone, std::slice::from_ref(first), "{label}");
                 }
             }
         }
