@@ -70,7 +70,8 @@ impl Chosen {
         }
     }
 
-    /// The query of this criterion with another error (at its default threshold).
+    /// The query choosing another error, at its default threshold: the chosen threshold is
+    /// in another unit.
     pub fn with_error(&self, error: &DetectionError) -> String {
         format!("error={}", error.name())
     }
@@ -89,6 +90,7 @@ impl Chosen {
         self.with_threshold(&self.threshold)
     }
 
+    /// A threshold as the links show it (`0.15`, not bop19's `0.15000000000000002`).
     pub fn label(&self, threshold: &f64) -> String {
         verdicts::short(*threshold)
     }
@@ -98,8 +100,8 @@ fn image_url(id: crate::domain::SubmissionId, scene: u32, im: u32, c: &Chosen) -
     format!("/submissions/{id}/targets/{scene}/{im}?{}", c.query())
 }
 
-/// The report's mean of `report`'s AP under the criterion's error (missing when nothing was
-/// counted), and each object's AP at its threshold.
+/// From the stored report: the mAP of the criterion's error (missing when nothing was counted),
+/// and each object's AP at the criterion's threshold, shown beside the counts they come from.
 fn report_aps(report: &DetectionReport, c: &Criterion) -> (Option<f64>, BTreeMap<u32, f64>) {
     let Some(scores) = report.errors.iter().find(|s| s.error == c.error) else {
         return (None, BTreeMap::new());
