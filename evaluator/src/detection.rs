@@ -8,6 +8,7 @@
 //! - [`ranking`]: greedy matching per threshold and the per-object true/false positives.
 //! - [`ap`]: COCO's 101-point average precision.
 //! - [`resampling`]: bootstrap replicates of `bop24_mAP` over the target images.
+//! - [`verdicts`]: every estimate's outcome at one error and threshold, image by image.
 //!
 //! Like the BOP'22 2D tasks ([`crate::coco`]), this is not a [`crate::ProtocolName`]: its
 //! targets (images, not objects), its selection of estimates (a cap per image, not n_top per
@@ -46,6 +47,7 @@ pub mod image_errors;
 pub mod kept;
 pub mod ranking;
 pub mod resampling;
+pub mod verdicts;
 
 /// The protocol's name on the command line and in reports.
 pub const PROTOCOL: &str = "bop24";
@@ -86,6 +88,11 @@ impl DetectionError {
             DetectionError::MssdMm => "mssd_mm",
             DetectionError::Mspd => "mspd",
         }
+    }
+
+    /// The error of that name ([`DetectionError::name`]).
+    pub fn named(name: &str) -> Option<DetectionError> {
+        DetectionError::ALL.into_iter().find(|e| e.name() == name)
     }
 
     /// 0.05..0.5 x diameter, 2..20 mm, 5..50 px at 640 px image width.
@@ -240,19 +247,7 @@ pub fn evaluation(
     } = Plan::new(dataset, results, max_estimates_per_image);
     let average_time = kept::average_time_per_image(results, &kept);
     progress.start(evaluated as u64);
-
-    let symmetries = image_errors::symmetries(dataset, &work);
-    let computed: Vec<image_errors::ImageErrors> = work
-        .par_iter()
-        .map(|w| {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(Error::Cancelled);
-            }
-            let errors = w.errors(dataset, results, &symmetries);
-            progress.advance(w.estimate_count() as u64);
-            Ok(errors)
-        })
-        .collect::<Result<_>>()?;
+    let computed = errors(dataset, results, &work, progress, cancel)?;
 
     let ranking = ranking::Ranking::new(dataset, &computed);
     let (errors, mut ranked): (Vec<ErrorScores>, Vec<_>) = DetectionError::ALL
@@ -311,6 +306,27 @@ pub fn evaluation(
         bootstrap: None,
     };
     Ok(DetectionEvaluation { report, outcomes })
+}
+
+/// The errors of the estimates of `work`'s images, in parallel on the caller's rayon pool.
+fn errors(
+    dataset: &Dataset,
+    results: &Results,
+    work: &[image_errors::ImageWork],
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+) -> Result<Vec<image_errors::ImageErrors>> {
+    let symmetries = image_errors::symmetries(dataset, work);
+    work.par_iter()
+        .map(|w| {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let errors = w.errors(dataset, results, &symmetries);
+            progress.advance(w.estimate_count() as u64);
+            Ok(errors)
+        })
+        .collect()
 }
 
 /// What a result file covers of a dataset's detection targets, known before any error is

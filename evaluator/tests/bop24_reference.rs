@@ -5,7 +5,8 @@
 //! The same on the reference scenes laid out as the BOP-Industrial datasets IPD and XYZ-IBD
 //! (`datasets/ipd`, `datasets/xyzibd`: the evaluated sensor's files beside another sensor's,
 //! MSPD normalised by the sensor's published width, XYZ-IBD's cap of 200 estimates per image),
-//! scored by the toolkit with its own parameters for those datasets.
+//! scored by the toolkit with its own parameters for those datasets. The verdicts per estimate
+//! (`detection::verdicts`, what the service's bop24 pages list) add up to those scores.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -169,6 +170,155 @@ fn what_the_cases_exercise_happens() {
     assert_eq!(dataset("ipd").image_width(1), 2064);
     assert_eq!(dataset("xyzibd").image_width(2), 1440);
     assert_eq!(detection::default_max_estimates_per_image("xyzibd"), 200);
+}
+
+/// Per object, at every error and threshold, the true and false positives the verdicts give,
+/// ranked over the images as the toolkit ranks them (images as listed, then the order within
+/// each image, a stable sort by decreasing score), make the per-object AP of the report to the
+/// bit, against the counted instances the verdicts give; the recall at the end of each ranking
+/// is the true positives over those instances. Every kept estimate of a present object is
+/// matched or not, and the rest are left out as the report counts them.
+#[test]
+fn the_verdicts_add_up_to_the_scores() {
+    use detection::ap;
+    use detection::verdicts::{Criterion, Verdict, inspect};
+    for (name, case) in DATASETS
+        .into_iter()
+        .flat_map(|d| CASES.map(move |c| (d, c)))
+    {
+        let label = format!("{name} {case}");
+        let ds = dataset(name);
+        let results = results::load_results(&result_file(name, case)).unwrap();
+        let cap = detection::default_max_estimates_per_image(name);
+        let report = score(name, case);
+        let inspection = inspect(ds, &results, cap, None, &AtomicBool::new(false)).unwrap();
+        for scores in &report.errors {
+            for (t, &threshold) in scores.thresholds.iter().enumerate() {
+                let criterion =
+                    Criterion::choose(Some(scores.error.name()), Some(threshold)).unwrap();
+                let images = inspection.verdicts(ds, &criterion);
+                assert_eq!(images.len(), report.target_images, "{label}");
+                let of = |v: Verdict| {
+                    images
+                        .iter()
+                        .flat_map(|i| &i.estimates)
+                        .filter(|e| e.verdict == v)
+                        .count()
+                };
+                assert_eq!(
+                    of(Verdict::TruePositive) + of(Verdict::FalsePositive) + of(Verdict::Ignored),
+                    report.estimates_evaluated,
+                    "{label}"
+                );
+                let instances: usize = images.iter().map(|i| i.instances.len()).sum();
+                assert_eq!(instances, report.instances, "{label}");
+                assert!(
+                    of(Verdict::BeyondCap) <= report.estimates_beyond_cap,
+                    "{label}"
+                );
+                assert!(
+                    of(Verdict::ObjectAbsent) <= report.estimates_ignored,
+                    "{label}"
+                );
+                for o in &scores.objects {
+                    let counted = images
+                        .iter()
+                        .flat_map(|i| &i.instances)
+                        .filter(|i| i.obj_id == o.obj_id && i.counted)
+                        .count();
+                    assert_eq!(counted, o.instances, "{label} object {}", o.obj_id);
+                    let mut ranked: Vec<(f64, bool)> = images
+                        .iter()
+                        .flat_map(|i| &i.estimates)
+                        .filter(|e| e.obj_id == o.obj_id)
+                        .filter(|e| {
+                            matches!(e.verdict, Verdict::TruePositive | Verdict::FalsePositive)
+                        })
+                        .map(|e| (e.score, e.verdict == Verdict::TruePositive))
+                        .collect();
+                    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+                    let hits: Vec<bool> = ranked.iter().map(|r| r.1).collect();
+                    let curve = ap::interpolated_precision(&hits, counted);
+                    assert_eq!(
+                        ap::average_precision(&curve),
+                        o.ap_per_threshold[t],
+                        "{label} {} {threshold} object {}",
+                        scores.error.name(),
+                        o.obj_id
+                    );
+                    // The curve reaches the recall of the true positives and no further.
+                    let found = hits.iter().filter(|&&h| h).count();
+                    let last = (0..ap::RECALL_POINTS).rev().find(|&p| curve[p] > 0.0);
+                    let recall = found as f64 / counted as f64;
+                    match last {
+                        Some(p) => assert!(
+                            p as f64 / 100.0 <= recall + 1e-12
+                                && (p + 1 == ap::RECALL_POINTS
+                                    || (p + 1) as f64 / 100.0 > recall - 1e-12),
+                            "{label} object {}: point {p}, recall {recall}",
+                            o.obj_id
+                        ),
+                        None => assert_eq!(found, 0, "{label}"),
+                    }
+                }
+                // One image inspected alone gives what it gives among all.
+                if t == 5 {
+                    let first = &images[0];
+                    let alone = inspect(
+                        ds,
+                        &results,
+                        cap,
+                        Some((first.scene_id, first.im_id)),
+                        &AtomicBool::new(false),
+                    )
+                    .unwrap()
+                    .verdicts(ds, &criterion);
+                    assert_eq!(alone, std::slice::from_ref(first), "{label}");
+                }
+            }
+        }
+        // Every estimate of a target image is listed once.
+        let listed: usize = inspection
+            .verdicts(ds, &Criterion::choose(None, None).unwrap())
+            .iter()
+            .map(|i| i.estimates.len())
+            .sum();
+        let on_targets = results
+            .estimates
+            .iter()
+            .filter(|e| {
+                ds.targets
+                    .iter()
+                    .any(|t| (t.scene_id, t.im_id) == (e.scene_id, e.im_id))
+            })
+            .count();
+        assert_eq!(listed, on_targets, "{label}");
+    }
+    // The capped file leaves estimates beyond the cap in a target image, the extra one
+    // estimates of absent objects.
+    let criterion = Criterion::choose(None, None).unwrap();
+    for (case, verdict) in [
+        ("capped", Verdict::BeyondCap),
+        ("extra", Verdict::ObjectAbsent),
+    ] {
+        let results = results::load_results(&result_file("synthA", case)).unwrap();
+        let images = inspect(
+            dataset("synthA"),
+            &results,
+            100,
+            None,
+            &AtomicBool::new(false),
+        )
+        .unwrap()
+        .verdicts(dataset("synthA"), &criterion);
+        assert!(
+            images
+                .iter()
+                .flat_map(|i| &i.estimates)
+                .any(|e| e.verdict == verdict),
+            "{case}"
+        );
+    }
 }
 
 #[test]

@@ -34,12 +34,20 @@ pub struct Ranking {
 }
 
 /// What an estimate is at one threshold.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Outcome {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
     TruePositive,
     FalsePositive,
     /// Matched to an instance too little visible to count: neither.
     Ignored,
+}
+
+/// An estimate at one threshold: its outcome and, when matched, the instance it took (an
+/// index into its object's `gt_ids`), which pages show beside the verdict.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Match {
+    pub outcome: Outcome,
+    pub instance: Option<usize>,
 }
 
 impl Ranking {
@@ -115,21 +123,14 @@ impl Ranking {
         error: DetectionError,
     ) -> (ErrorScores, RankedByImage) {
         let thresholds = error.thresholds();
-        // MSPD is normalised by the width of the scene's evaluated sensor, as the toolkit does
-        // (HOT3D's two headsets differ).
-        let normalised = |scene_id: u32, obj_id: u32, e: &EstimateErrors, i: usize| match error {
-            DetectionError::Mssd => e.mssd[i] / dataset.objects[&obj_id].info.diameter,
-            DetectionError::MssdMm => e.mssd[i],
-            DetectionError::Mspd => 640.0 / f64::from(dataset.image_width(scene_id)) * e.mspd[i],
-        };
         let mut curves: BTreeMap<u32, Vec<[f64; RECALL_POINTS]>> = BTreeMap::new();
         let mut ranked_images = RankedByImage::new();
         for &threshold in &thresholds {
-            let outcomes = outcomes(dataset, images, threshold, &normalised);
+            let matches = matches(dataset, images, error, threshold);
             for (obj_id, order) in &self.order {
                 let ranked: Vec<(u32, bool)> = order
                     .iter()
-                    .map(|&(i, o, e)| (i as u32, outcomes[i][o][e]))
+                    .map(|&(i, o, e)| (i as u32, matches[i][o][e].outcome))
                     .filter(|&(_, x)| x != Outcome::Ignored)
                     .map(|(i, x)| (i, x == Outcome::TruePositive))
                     .collect();
@@ -183,15 +184,34 @@ impl Ranking {
     }
 }
 
-/// Every estimate's outcome at one threshold, indexed like the errors: the greedy matching
-/// of each image and object (estimates in decreasing score take the unmatched instance with
-/// the lowest error strictly below the threshold, the first such instance on ties).
-fn outcomes(
+/// The error `error` thresholds: estimate `e`'s against instance `i` of its object, in the
+/// unit of the error's thresholds. MSPD is normalised by the width of the scene's evaluated
+/// sensor, as the toolkit does (HOT3D's two headsets differ).
+pub fn normalised(
+    dataset: &Dataset,
+    error: DetectionError,
+    scene_id: u32,
+    obj_id: u32,
+    e: &EstimateErrors,
+    i: usize,
+) -> f64 {
+    match error {
+        DetectionError::Mssd => e.mssd[i] / dataset.objects[&obj_id].info.diameter,
+        DetectionError::MssdMm => e.mssd[i],
+        DetectionError::Mspd => 640.0 / f64::from(dataset.image_width(scene_id)) * e.mspd[i],
+    }
+}
+
+/// Every estimate's match at one threshold of `error`, indexed like the errors: the greedy
+/// matching of each image and object (estimates in decreasing score take the unmatched instance
+/// with the lowest error strictly below the threshold, the first such instance on ties). The
+/// scores and the pages that list single estimates both read it, so they cannot disagree.
+pub fn matches(
     dataset: &Dataset,
     images: &[ImageErrors],
+    error: DetectionError,
     threshold: f64,
-    normalised: &impl Fn(u32, u32, &EstimateErrors, usize) -> f64,
-) -> Vec<Vec<Vec<Outcome>>> {
+) -> Vec<Vec<Vec<Match>>> {
     images
         .iter()
         .map(|im| {
@@ -209,13 +229,13 @@ fn outcomes(
                                 if taken {
                                     continue;
                                 }
-                                let e = normalised(im.scene_id, obj.obj_id, est, i);
+                                let e = normalised(dataset, error, im.scene_id, obj.obj_id, est, i);
                                 if e < best_error {
                                     best = Some(i);
                                     best_error = e;
                                 }
                             }
-                            match best {
+                            let outcome = match best {
                                 None => Outcome::FalsePositive,
                                 Some(i) => {
                                     matched[i] = true;
@@ -225,6 +245,10 @@ fn outcomes(
                                         Outcome::Ignored
                                     }
                                 }
+                            };
+                            Match {
+                                outcome,
+                                instance: best,
                             }
                         })
                         .collect()

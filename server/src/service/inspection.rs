@@ -1,13 +1,18 @@
 //! What the pages that look inside a submission read: its targets one by one, two submissions
 //! compared target by target, its worst targets, a target's picture. They show evidence behind
 //! scores, so they read only what [`visibility`] lets the reader see, and the verdicts are
-//! made from the errors stored with the scores (the very numbers the scores counted).
+//! made from the errors stored with the scores (the very numbers the scores counted). BOP'24
+//! detections store no errors: theirs are computed again from the stored file by the
+//! evaluator's own steps, which give the same numbers.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use evaluator::coco::{self, CocoReport, ImageOutcome};
 use evaluator::dataset::Target;
+use evaluator::detection::DetectionReport;
+use evaluator::detection::verdicts::{self, Criterion, ImageVerdicts};
 use evaluator::protocol::ProtocolName;
 use evaluator::results::{self, Results};
 use evaluator::{Dataset, Report};
@@ -99,13 +104,14 @@ pub async fn comparable(
 
 /// Whether two submissions, each with its 6D protocols or its task (2D, or BOP'24 detection),
 /// were scored under a protocol in common that compares side by side: the rule of what
-/// compares. BOP'24 detections are ranked on their board and not compared here.
+/// compares.
 pub fn share_a_protocol(
     (a, a_task): (&[ProtocolName], Option<Task>),
     (b, b_task): (&[ProtocolName], Option<Task>),
 ) -> bool {
     match (a_task, b_task) {
         (Some(Task::Coco(x)), Some(Task::Coco(y))) => x == y,
+        (Some(Task::Bop24), Some(Task::Bop24)) => true,
         (None, None) => a.iter().any(|p| b.contains(p)),
         _ => false,
     }
@@ -193,9 +199,20 @@ pub async fn picture_inputs(
         .find(|t| (t.scene_id, t.im_id, t.obj_id) == (target.scene_id, target.im_id, target.obj_id))
         .copied()
         .ok_or(AppError::NotFound)?;
+    let results = parsed_results(app, &s).await?;
+    Ok(PictureInputs {
+        dataset,
+        results,
+        target: found,
+        protocol,
+    })
+}
+
+/// The estimates of the 6D submission `s` (one checked visible), read from its stored upload
+/// and parsed once per file (see `parsed_files`).
+async fn parsed_results(app: &App, s: &SubmissionRow) -> AppResult<Arc<Results>> {
     let sha256 = &s.file_sha256;
-    let results = app
-        .parsed_files
+    app.parsed_files
         .get_or_parse(sha256, move || async move {
             let bytes = uploaded_file::fetch(&app.store, &app.config.submissions_dir(), sha256)
                 .await
@@ -207,13 +224,49 @@ pub async fn picture_inputs(
             })
             .await
         })
-        .await?;
-    Ok(PictureInputs {
-        dataset,
-        results,
-        target: found,
-        protocol,
+        .await
+}
+
+/// The stored report of the bop24 submission `id` (one checked visible).
+pub async fn bop24_report(app: &App, id: SubmissionId) -> AppResult<DetectionReport> {
+    app.store
+        .bop24_report(id)
+        .await?
+        .ok_or_else(|| AppError::BadRequest(format!("submission {id} has no bop24 scores")))
+}
+
+/// Every estimate of the bop24 submission `s` (one checked visible and finished) at
+/// `criterion`, image by image (only `image`, a (scene, image) pair, when given): its stored
+/// file evaluated again on the dataset with the cap of its report, through the evaluator's own
+/// cap, errors and matching (`evaluator::detection::verdicts`), so the true positives are the
+/// ones its AP counted. BOP'24 errors need no rendering, so they are computed on demand, on the
+/// evaluation threads.
+pub async fn bop24_verdicts(
+    app: &App,
+    s: &SubmissionRow,
+    report: &DetectionReport,
+    criterion: Criterion,
+    image: Option<(u32, u32)>,
+) -> AppResult<Vec<ImageVerdicts>> {
+    let row = app
+        .store
+        .dataset(s.dataset_id)
+        .await?
+        .ok_or_else(|| AppError::Internal(format!("dataset {} is gone", s.dataset_id)))?;
+    let dataset = app.bop24_dataset(&row).await?.ok_or_else(|| {
+        AppError::Internal(format!(
+            "dataset `{}` no longer has its test_targets_bop24.json",
+            row.name
+        ))
+    })?;
+    let results = parsed_results(app, s).await?;
+    let cap = report.parameters.max_estimates_per_image;
+    app.on_pool("matching bop24 estimates", move || {
+        verdicts::inspect(&dataset, &results, cap, image, &AtomicBool::new(false))
+            .map(|inspection| inspection.verdicts(&dataset, &criterion))
+            .map_err(|e| AppError::failed("computing bop24 errors", e))
     })
+    .await
 }
 
 #[cfg(test)]
@@ -233,8 +286,9 @@ mod tests {
         assert!(!share_a_protocol((&[], det), (&[Bop19], None)));
         assert!(share_a_protocol((&[], det), (&[], det)));
         assert!(!share_a_protocol((&[], det), (&[], seg)));
-        // BOP'24 detections are compared on their board, with nothing else.
-        assert!(!share_a_protocol((&[], bop24), (&[], bop24)));
+        // BOP'24 detections compare with each other only.
+        assert!(share_a_protocol((&[], bop24), (&[], bop24)));
+        assert!(!share_a_protocol((&[], bop24), (&[], det)));
         assert!(!share_a_protocol((&[], bop24), (&[Bop19], None)));
     }
 }

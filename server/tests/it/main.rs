@@ -17,6 +17,7 @@ mod backup;
 mod board_cache;
 mod bop24;
 mod bop24_cli;
+mod bop24_pages;
 mod broken_dataset;
 mod browser;
 mod challenge_datasets;

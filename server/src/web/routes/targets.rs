@@ -1,5 +1,7 @@
-//! The pages of single targets and their JSON twins: two submissions compared target by target,
-//! one target of a submission, and a submission's worst targets (see `crate::web::views::targets`).
+//! The pages of single targets and their JSON twins: two submissions compared target by target
+//! (or image by image), one target of a submission, a submission's worst targets, and for a
+//! BOP'24 detection its target images and one image's estimates (see
+//! `crate::web::views::targets`).
 
 use askama::Template;
 use askama_web::WebTemplate;
@@ -14,14 +16,17 @@ use crate::domain::SubmissionId;
 use crate::error::{AppError, AppResult};
 use crate::web::auth::Viewer;
 use crate::web::routes::pages::filters;
+use crate::web::views::targets::bop24::{Bop24Comparison, Bop24Gallery, Bop24Image};
 use crate::web::views::targets::{
-    self, Choice, CocoComparison, CompareQuery, Compared, Comparison, Gallery, TargetView,
+    self, Choice, CocoComparison, CompareQuery, Compared, Comparison, Galleries, Gallery,
+    TargetView,
 };
 
 pub fn page_router() -> Router<AppState> {
     Router::new()
         .route("/compare", get(compare_page))
         .route("/submissions/{id}/targets", get(gallery_page))
+        .route("/submissions/{id}/targets/{scene}/{im}", get(image_page))
         .route(
             "/submissions/{id}/targets/{scene}/{im}/{obj}",
             get(target_page),
@@ -34,6 +39,10 @@ pub fn api_router() -> Router<AppState> {
     Router::new()
         .route("/api/v1/compare", get(compare_json))
         .route("/api/v1/submissions/{id}/targets", get(gallery_json))
+        .route(
+            "/api/v1/submissions/{id}/targets/{scene}/{im}",
+            get(image_json),
+        )
         .route(
             "/api/v1/submissions/{id}/errors/{protocol}/{scene}/{im}/{obj}",
             get(target_json),
@@ -52,6 +61,12 @@ struct CocoComparePage {
     view: Box<CocoComparison>,
 }
 
+#[derive(Template, WebTemplate)]
+#[template(path = "compare_bop24.html")]
+struct Bop24ComparePage {
+    view: Box<Bop24Comparison>,
+}
+
 async fn compare_page(
     State(app): State<AppState>,
     viewer: Viewer,
@@ -60,6 +75,7 @@ async fn compare_page(
     Ok(match targets::compare(&app, &q, &viewer).await? {
         Compared::Pose(view) => ComparePage { view }.into_response(),
         Compared::Coco(view) => CocoComparePage { view }.into_response(),
+        Compared::Bop24(view) => Bop24ComparePage { view }.into_response(),
     })
 }
 
@@ -74,7 +90,13 @@ async fn compare_json(
 #[derive(Template, WebTemplate)]
 #[template(path = "targets.html")]
 struct GalleryPage {
-    view: Gallery,
+    view: Box<Gallery>,
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "targets_bop24.html")]
+struct Bop24GalleryPage {
+    view: Box<Bop24Gallery>,
 }
 
 async fn gallery_page(
@@ -82,9 +104,10 @@ async fn gallery_page(
     viewer: Viewer,
     Path(id): Path<SubmissionId>,
     Query(choice): Query<Choice>,
-) -> AppResult<GalleryPage> {
-    Ok(GalleryPage {
-        view: targets::gallery(&app, id, &choice, &viewer).await?,
+) -> AppResult<Response> {
+    Ok(match targets::gallery(&app, id, &choice, &viewer).await? {
+        Galleries::Pose(view) => GalleryPage { view }.into_response(),
+        Galleries::Bop24(view) => Bop24GalleryPage { view }.into_response(),
     })
 }
 
@@ -93,8 +116,36 @@ async fn gallery_json(
     viewer: Viewer,
     Path(id): Path<SubmissionId>,
     Query(choice): Query<Choice>,
-) -> AppResult<Json<Gallery>> {
+) -> AppResult<Json<Galleries>> {
     Ok(Json(targets::gallery(&app, id, &choice, &viewer).await?))
+}
+
+#[derive(Template, WebTemplate)]
+#[template(path = "target_image.html")]
+struct ImagePage {
+    view: Bop24Image,
+}
+
+async fn image_page(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, scene, im)): Path<(SubmissionId, u32, u32)>,
+    Query(choice): Query<Choice>,
+) -> AppResult<ImagePage> {
+    Ok(ImagePage {
+        view: targets::image(&app, id, (scene, im), &choice, &viewer).await?,
+    })
+}
+
+async fn image_json(
+    State(app): State<AppState>,
+    viewer: Viewer,
+    Path((id, scene, im)): Path<(SubmissionId, u32, u32)>,
+    Query(choice): Query<Choice>,
+) -> AppResult<Json<Bop24Image>> {
+    Ok(Json(
+        targets::image(&app, id, (scene, im), &choice, &viewer).await?,
+    ))
 }
 
 #[derive(Template, WebTemplate)]

@@ -3,6 +3,9 @@
 //! is one view, rendered as a page and as JSON. The verdicts are the evaluator's outcomes
 //! (`evaluator::outcomes`) made from the per-estimate errors stored with the scores, so they are
 //! the verdicts the scores count; the errors are read and matched on the evaluation threads.
+//! BOP'24 detections, whose targets are images, have their own views in [`bop24`].
+
+pub mod bop24;
 
 use std::collections::BTreeMap;
 
@@ -394,12 +397,14 @@ fn pair(
     (counts, targets)
 }
 
-/// Two submissions compared: 6D ones target by target, 2D ones image by image.
+/// Two submissions compared: 6D ones target by target, 2D ones and BOP'24 detections image by
+/// image.
 #[derive(Clone, Debug, Serialize)]
 #[serde(untagged)]
 pub enum Compared {
     Pose(Box<Comparison>),
     Coco(Box<CocoComparison>),
+    Bop24(Box<bop24::Bop24Comparison>),
 }
 
 /// What COCOeval counts of one submission at IoU 0.5 in an image and category (or summed).
@@ -565,7 +570,8 @@ async fn compare_coco(
 }
 
 /// Compares submissions `a` and `b`, both visible to `viewer`, finished, on one dataset and
-/// scored alike: 6D ones target by target, 2D ones of one task image by image.
+/// scored alike: 6D ones target by target, 2D ones of one task and BOP'24 detections image by
+/// image.
 pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<Compared> {
     let id = |name: &str, v: &Option<String>| -> AppResult<SubmissionId> {
         let s = field(v).ok_or_else(|| {
@@ -592,12 +598,8 @@ pub async fn compare(app: &App, q: &CompareQuery, viewer: &Viewer) -> AppResult<
             )));
         }
         (Some(Task::Bop24), Some(Task::Bop24)) => {
-            return Err(AppError::BadRequest(format!(
-                "submissions {ia} and {ib} are BOP'24 6D detections: they compare on the bop24 \
-                 board (/leaderboards/bop24?dataset={}), with their precision-recall curves \
-                 overlaid; side by side, target by target, compares the localization \
-                 protocols and the 2D tasks",
-                sa.dataset
+            return Ok(Compared::Bop24(Box::new(
+                bop24::compare(app, &sa, &sb, &choice).await?,
             )));
         }
         (None, None) => {}
@@ -673,13 +675,31 @@ pub async fn comparable(app: &App, s: &SubmissionRow, viewer: &Viewer) -> AppRes
         .collect())
 }
 
-/// Submission `id` if `reader` may see it, it is finished and it has targets: a 2D
-/// submission has none (its detections are scored per image and category), so asking for them
-/// answers where its evidence is instead.
-async fn with_targets(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult<SubmissionRow> {
-    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+/// Submission `s` (visible to the reader and finished) if it has targets of objects in images:
+/// a 2D submission has none (its detections are scored per image and category), and a BOP'24
+/// detection's targets are whole images, so asking for them answers where its evidence is
+/// instead.
+fn with_targets(s: SubmissionRow) -> AppResult<SubmissionRow> {
+    let id = s.id;
     match s.task {
         None => Ok(s),
+        Some(Task::Bop24) => Err(AppError::NotHere {
+            message: format!(
+                "submission {id} is a bop24 (6D detection) submission: its targets are whole \
+                 images, each at /submissions/{id}/targets/SCENE/IMAGE with every estimate's \
+                 verdict, not objects in images"
+            ),
+            links: vec![
+                (
+                    format!("Submission {id}: its target images"),
+                    format!("/submissions/{id}/targets"),
+                ),
+                (
+                    "The bop24 board".to_string(),
+                    format!("/leaderboards/bop24?dataset={}", urlencode(&s.dataset)),
+                ),
+            ],
+        }),
         Some(task) => Err(AppError::NotHere {
             message: format!(
                 "submission {id} is a {} (2D) submission: it has no 6D targets; its detections \
@@ -703,6 +723,33 @@ async fn with_targets(app: &App, id: SubmissionId, viewer: &Viewer) -> AppResult
                 ),
             ],
         }),
+    }
+}
+
+/// Target image (scene, image) of the BOP'24 detection `id`, visible to `viewer` and finished;
+/// a submission of another kind has no whole images as targets, and answers where to look.
+pub async fn image(
+    app: &App,
+    id: SubmissionId,
+    at: (u32, u32),
+    choice: &Choice,
+    viewer: &Viewer,
+) -> AppResult<bop24::Bop24Image> {
+    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+    match s.task {
+        Some(Task::Bop24) => bop24::image(app, &s, at, choice).await,
+        None => Err(AppError::NotHere {
+            message: format!(
+                "submission {id} is a 6D localization submission: its targets are objects in \
+                 images, each at /submissions/{id}/targets/SCENE/IMAGE/OBJECT"
+            ),
+            links: vec![(
+                format!("Submission {id}: its worst targets"),
+                format!("/submissions/{id}/targets"),
+            )],
+        }),
+        // A 2D submission: why it has no targets.
+        Some(_) => with_targets(s).and(Err(AppError::NotFound)),
     }
 }
 
@@ -850,7 +897,7 @@ pub async fn target(
     choice: &Choice,
     viewer: &Viewer,
 ) -> AppResult<TargetView> {
-    let s = with_targets(app, id, viewer).await?;
+    let s = with_targets(inspection::finished(app, id, viewer.user.as_ref()).await?)?;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
@@ -1018,14 +1065,37 @@ fn worst_first(a: &TargetOutcome, b: &TargetOutcome) -> std::cmp::Ordering {
 pub const WORST_ORDER: &str = "missed targets first (those without any estimate, then by \
     decreasing error of the nearest estimate), then correct ones by decreasing error";
 
-/// The worst targets of each object of submission `id`.
+/// A submission's targets: the worst per object of a 6D localization, the images of a BOP'24
+/// detection.
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum Galleries {
+    Pose(Box<Gallery>),
+    Bop24(Box<bop24::Bop24Gallery>),
+}
+
+/// The targets of submission `id` visible to `viewer` and finished: the worst of each object,
+/// or for a BOP'24 detection its target images, worst first.
 pub async fn gallery(
     app: &App,
     id: SubmissionId,
     choice: &Choice,
     viewer: &Viewer,
-) -> AppResult<Gallery> {
-    let s = with_targets(app, id, viewer).await?;
+) -> AppResult<Galleries> {
+    let s = inspection::finished(app, id, viewer.user.as_ref()).await?;
+    if s.task == Some(Task::Bop24) {
+        return Ok(Galleries::Bop24(Box::new(
+            bop24::gallery(app, &s, choice).await?,
+        )));
+    }
+    worst(app, with_targets(s)?, choice)
+        .await
+        .map(|g| Galleries::Pose(Box::new(g)))
+}
+
+/// The worst targets of each object of the 6D localization `s`.
+async fn worst(app: &App, s: SubmissionRow, choice: &Choice) -> AppResult<Gallery> {
+    let id = s.id;
     let protocols = protocols_of(&s);
     let name = choice.protocol(&protocols)?;
     let protocol = Protocol::named(name);
