@@ -15,7 +15,7 @@ use std::sync::atomic::AtomicU64;
 
 use sqlx::any::AnyPoolOptions;
 use sqlx::migrate::Migrator;
-use sqlx::{Any, AnyPool, Transaction};
+use sqlx::{Any, AnyPool, Connection as _, Transaction};
 
 pub mod accounts;
 pub mod audit;
@@ -193,8 +193,14 @@ impl Store {
         } else {
             return Err(StoreError::Url(url.to_string()));
         };
-        let mut options =
-            AnyPoolOptions::new().max_connections(if backend == Backend::Sqlite { 4 } else { 10 });
+        let mut options = AnyPoolOptions::new()
+            .max_connections(if backend == Backend::Sqlite { 4 } else { 10 })
+            // SQLite rolls a transaction back by itself when its COMMIT fails for want of disk
+            // (SQLITE_FULL); sqlx then still counts the connection as inside it, its own
+            // ROLLBACK failing, and every later `begin` on that connection fails. Such a
+            // connection is closed when next taken from the pool rather than handed out: the
+            // request after a full disk was made room for succeeds instead of a 500.
+            .before_acquire(|conn, _| Box::pin(async move { Ok(!conn.is_in_transaction()) }));
         if backend == Backend::Sqlite {
             options = options.after_connect(|conn, _| {
                 Box::pin(async move {

@@ -8,7 +8,11 @@ pub fn init(format: LogFormat) {
         .unwrap_or_else(|_| "info,tower_http=info,sqlx=warn".into());
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr);
+        .with_writer(std::io::stderr)
+        // A line that cannot be written (stderr sent to a full disk) is lost, not reported:
+        // the subscriber reports it with `eprintln!`, which panics when stderr fails, so every
+        // request then died mid-answer and the site form's uploads got no answer at all.
+        .log_internal_errors(false);
     // A second initialisation (a test calling twice) keeps the first subscriber.
     let _ = match format {
         LogFormat::Text => builder.try_init(),

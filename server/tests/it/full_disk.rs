@@ -1,8 +1,12 @@
 //! A full disk refuses an upload with `507` and keeps nothing of it (issue 29, point 4): with
 //! the data directory's disk full (a small tmpfs mounted on it and filled), and with the disk of
 //! a SQLite database full while the data directory has room, an upload through the API gets
-//! `507` with a JSON message; no submission, no stored file
-//! and no temporary file stays, and once there is room again the same service takes uploads.
+//! `507` with a JSON message and one through the site's form a `507` page, both sent as
+//! clients send them (the body streamed after the headers); no submission, no stored file
+//! and no temporary file stays, and once there is room again the same service takes uploads
+//! (on SQLite, a connection whose commit failed for want of room is not handed out again).
+//! The server's log is on the full disk too in the first case: lines it cannot write are lost
+//! without taking the requests down.
 //! PostgreSQL's `disk_full` (SQLSTATE 53100), raised by a real PostgreSQL, and SQLite's
 //! `SQLITE_FULL` answer `507` as well.
 //!
@@ -15,9 +19,10 @@ use std::process::Command;
 use std::time::Duration;
 
 use crate::common::{
-    Db, Server, TestDb, both_databases, column, execute, fixtures, reference_datasets, start,
-    upload, wait_done,
+    Db, Server, TestDb, both_databases, browser, column, csrf_of, execute, fixtures,
+    reference_datasets, start, upload, upload_with, wait_done,
 };
+use reqwest::blocking::{Client, multipart};
 use serde_json::Value;
 
 /// A tmpfs of a given size mounted on a folder for as long as this lives.
@@ -98,72 +103,48 @@ fn rows(db: &TestDb, data: &Path, table: &str) -> String {
     counted.concat()
 }
 
-/// Sends an upload to `path` as one whole request, `headers` added, and only then reads the
-/// answer: its status and body. The service answers an upload it cannot write at once, while a
-/// client streaming its body may still be sending and then see the connection closed instead
-/// of the answer; a request sent whole shows what the service answered.
-fn whole_upload(
-    server: &Server,
-    path: &str,
-    headers: &str,
-    fields: &[(&str, &str)],
-    file: &Path,
-) -> (u16, String) {
-    use std::io::Read;
-    let boundary = "poseboard-full-disk";
-    let mut body = Vec::new();
-    for (name, value) in fields {
-        write!(
-            body,
-            "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"\r\n\r\n{value}\r\n"
-        )
-        .expect("field");
-    }
-    let file_name = file.file_name().expect("name").to_string_lossy();
-    write!(
-        body,
-        "--{boundary}\r\nContent-Disposition: form-data; name=\"file\"; \
-         filename=\"{file_name}\"\r\nContent-Type: text/csv\r\n\r\n"
-    )
-    .expect("file part");
-    body.extend(std::fs::read(file).expect("result file"));
-    write!(body, "\r\n--{boundary}--\r\n").expect("end");
-    let addr = server.base.trim_start_matches("http://");
-    let mut stream = std::net::TcpStream::connect(addr).expect("connect");
-    stream
-        .set_read_timeout(Some(Duration::from_secs(60)))
-        .expect("timeout");
-    let head = format!(
-        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n{headers}\
-         Content-Type: multipart/form-data; boundary={boundary}\r\nContent-Length: {}\r\n\r\n",
-        body.len()
-    );
-    let mut request = head.into_bytes();
-    request.extend(body);
-    stream.write_all(&request).expect("request sent");
-    let mut answer = Vec::new();
-    stream.read_to_end(&mut answer).expect("answer");
-    let answer = String::from_utf8_lossy(&answer).into_owned();
-    let status = answer
-        .split(' ')
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("{path}: no status: {answer}"));
-    let body = answer.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-    (status, body.to_string())
-}
-
-/// The API's refusal of an upload for want of room.
+/// The API's refusal of an upload for want of room, sent as clients send it: the headers
+/// first, the body streamed after them. The service reads such a body to its end before it
+/// answers, so the client sees the answer rather than a connection closed while it sends.
 fn assert_refused_by_the_api(server: &Server, file: &Path, what: &str) {
-    let auth = format!("Authorization: Bearer {}\r\n", server.token);
     let fields = [("method", "full"), ("dataset", "synthA")];
-    let (status, body) = whole_upload(server, "/api/v1/submissions", &auth, &fields, file);
+    let r = upload_with(server, &server.token, &fields, file);
+    let status = r.status();
+    let body = r.text().expect("body");
     assert_eq!(status, 507, "{what}: {body}");
     let body: Value = serde_json::from_str(&body).expect("JSON");
     let error = body["error"].as_str().expect("error");
     assert!(
         error.contains("out of disk space") && error.contains("nothing was stored"),
         "{what}: {error}"
+    );
+}
+
+/// The site form's refusal of an upload for want of room, sent as a browser sends it (the
+/// body streamed after the headers): an error page with status `507` that says why.
+fn assert_refused_by_the_form(browser: &Client, server: &Server, file: &Path, what: &str) {
+    let page = browser
+        .get(format!("{}/submit", server.base))
+        .send()
+        .expect("form");
+    assert_eq!(page.status(), 200, "{what}: the form");
+    let csrf = csrf_of(&page.text().expect("page"));
+    let form = multipart::Form::new()
+        .text("csrf", csrf)
+        .text("method", "full-form")
+        .text("dataset", "synthA")
+        .file("file", file)
+        .expect("file");
+    let r = browser
+        .post(format!("{}/submit", server.base))
+        .multipart(form)
+        .send()
+        .unwrap_or_else(|e| panic!("{what}: the form's upload got no answer: {e:?}"));
+    assert_eq!(r.status(), 507, "{what}");
+    let page = r.text().expect("page");
+    assert!(
+        page.contains("out of disk space") && page.contains("nothing was stored"),
+        "{what}: {page}"
     );
 }
 
@@ -177,6 +158,7 @@ fn an_upload_to_a_full_data_directory_is_refused_with_507(kind: Db) {
     };
     let db = TestDb::new(kind, "fulldata");
     let server = start(&data, &datasets, &db, &["--no-demo"]);
+    let (site, _) = browser(&server, "formuser");
     let file = fixtures().join("results/noisesmall_synthA-test.csv");
     if matches!(kind, Db::Sqlite) {
         // SQLite's small writes (the token's last use) go on reusing its write-ahead log's
@@ -187,6 +169,7 @@ fn an_upload_to_a_full_data_directory_is_refused_with_507(kind: Db) {
     disk.fill("filler");
 
     assert_refused_by_the_api(&server, &file, "API");
+    assert_refused_by_the_form(&site, &server, &file, "form");
     // Nothing half-written: no submission, no method, no stored file, no temporary file.
     for table in ["submissions", "methods", "submission_files"] {
         assert_eq!(rows(&db, &data, table), "0", "{kind:?}: rows in {table}");
@@ -264,6 +247,7 @@ fn an_upload_to_a_full_sqlite_disk_is_refused_with_507() {
     let db_file = disk.at.join("poseboard.db");
     let db = TestDb::at(format!("sqlite://{}?mode=rwc", db_file.display()));
     let server = start(&data, &datasets, &db, &["--no-demo"]);
+    let (site, _) = browser(&server, "formuser");
     let big = dir.path().join("big_synthA-test.csv");
     incompressible_results(&big, 20_000);
 
@@ -288,6 +272,7 @@ fn an_upload_to_a_full_sqlite_disk_is_refused_with_507() {
     std::fs::remove_file(disk.at.join("room")).expect("room made");
 
     assert_refused_by_the_api(&server, &big, "SQLite's disk full");
+    assert_refused_by_the_form(&site, &server, &big, "SQLite's disk full, the form");
     for table in ["submissions", "methods", "submission_files"] {
         assert_eq!(rows(&db, &data, table), "0", "rows in {table}");
     }
@@ -302,7 +287,10 @@ fn an_upload_to_a_full_sqlite_disk_is_refused_with_507() {
 
     std::fs::remove_file(disk.at.join("filler")).expect("room made");
     let r = upload(&server, "big", "synthA", &big, None);
-    assert_eq!(r.status(), 202, "{}", r.text().unwrap_or_default());
+    let status = r.status();
+    let body = r.text().unwrap_or_default();
+    let log = std::fs::read_to_string(data.join("server.log")).unwrap_or_default();
+    assert_eq!(status, 202, "{body}\n{log}");
     drop(server);
     drop(disk);
 }
