@@ -664,3 +664,90 @@ pub fn synth_with_results(
     files.sort();
     (datasets, files)
 }
+
+/// What a reader got for one request: the path, the status, whether `Retry-After` came with
+/// it, and the body.
+pub struct Answer {
+    pub path: String,
+    pub status: u16,
+    pub retry_after: bool,
+    pub text: String,
+}
+
+/// Asks for `paths` in turn from `base`, starting at the `first`, `pause` apart, until `stop`,
+/// keeping every answer in `answers`. A request that got no answer at all (a connection refused
+/// while a database restart keeps the server from accepting, say) is not kept: the database
+/// fault tests judge what the service answered.
+pub fn read_until(
+    base: &str,
+    paths: &[String],
+    first: usize,
+    pause: Duration,
+    stop: &std::sync::atomic::AtomicBool,
+    answers: &std::sync::Mutex<Vec<Answer>>,
+) {
+    let c = client();
+    let mut i = first;
+    while !stop.load(Ordering::Relaxed) {
+        let path = &paths[i % paths.len()];
+        i += 1;
+        let Ok(r) = c.get(format!("{base}{path}")).send() else {
+            continue;
+        };
+        let status = r.status().as_u16();
+        let retry_after = r.headers().contains_key("retry-after");
+        let text = r.text().unwrap_or_default();
+        answers.lock().expect("answers").push(Answer {
+            path: path.clone(),
+            status,
+            retry_after,
+            text,
+        });
+        std::thread::sleep(pause);
+    }
+}
+
+/// Every answer is a 200 or a 503 that says when to try again and that nothing was changed:
+/// a database fault is never a 500.
+pub fn assert_200_or_503(answers: &[Answer]) {
+    for a in answers {
+        assert!(
+            a.status == 200 || a.status == 503,
+            "{} answered {}: {}",
+            a.path,
+            a.status,
+            a.text
+        );
+        if a.status == 503 {
+            assert!(a.retry_after, "{}: a 503 without Retry-After", a.path);
+            assert!(
+                a.text.contains("nothing was changed"),
+                "{}: {}",
+                a.path,
+                a.text
+            );
+        }
+    }
+}
+
+/// `poseboard submit FILE --method METHOD --dataset DATASET --json` as the account `tester`
+/// of `server`, which waits for the scores; its last line, the submission as it ended.
+pub fn submit_and_wait(server: &Server, file: &Path, method: &str, dataset: &str) -> Value {
+    let out = Command::new(BIN)
+        .arg("submit")
+        .arg(file)
+        .args(["--method", method, "--dataset", dataset, "--json"])
+        .env("POSEBOARD_SERVER", &server.base)
+        .env("POSEBOARD_TOKEN", &server.token)
+        .stdin(Stdio::null())
+        .output()
+        .expect("poseboard submit runs");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "submit {method}: {}{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let last = stdout.lines().last().expect("a last line");
+    serde_json::from_str(last).expect("JSON")
+}

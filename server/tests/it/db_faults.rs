@@ -5,14 +5,13 @@
 //! `poseboard eval` gives, and the log names the outage once, not once per failed request.
 //! PostgreSQL only: terminating connections is its operation.
 
-use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use crate::common::{
-    BIN, Db, TestDb, cli_report, client, column, fixtures, pg_exec, reference_datasets, start,
-    upload, wait_done,
+    Answer, Db, TestDb, assert_200_or_503, cli_report, column, fixtures, pg_exec, read_until,
+    reference_datasets, start, submit_and_wait, upload, wait_done,
 };
 use serde_json::Value;
 
@@ -40,7 +39,7 @@ fn terminated_connections_answer_503_never_500() {
         "/api/v1/methods".to_string(),
     ];
     let stop = AtomicBool::new(false);
-    let answers: Mutex<Vec<(String, u16, bool, String)>> = Mutex::new(Vec::new());
+    let answers: Mutex<Vec<Answer>> = Mutex::new(Vec::new());
     let mut terminated = 0;
     let files = ["noisemedium", "gtexact", "symflip"];
     let submitted: Vec<(String, Value)> = std::thread::scope(|s| {
@@ -59,51 +58,14 @@ fn terminated_connections_answer_503_never_500() {
         });
         for reader in 0..3 {
             let (paths, stop, answers, base) = (&paths, &stop, &answers, &base);
-            s.spawn(move || {
-                let c = client();
-                let mut i = reader;
-                while !stop.load(Ordering::Relaxed) {
-                    let path = &paths[i % paths.len()];
-                    i += 1;
-                    let Ok(r) = c.get(format!("{base}{path}")).send() else {
-                        continue;
-                    };
-                    let status = r.status().as_u16();
-                    let retry_after = r.headers().contains_key("retry-after");
-                    let text = r.text().unwrap_or_default();
-                    answers.lock().expect("answers").push((
-                        path.clone(),
-                        status,
-                        retry_after,
-                        text,
-                    ));
-                }
-            });
+            s.spawn(move || read_until(base, paths, reader, Duration::ZERO, stop, answers));
         }
         let submitted = files
             .iter()
             .map(|name| {
                 let file = fixtures().join(format!("results/{name}_synthA-test.csv"));
-                let out = Command::new(BIN)
-                    .arg("submit")
-                    .arg(&file)
-                    .args(["--method", name, "--dataset", "synthA", "--json"])
-                    .env("POSEBOARD_SERVER", &base)
-                    .env("POSEBOARD_TOKEN", &server.token)
-                    .stdin(Stdio::null())
-                    .output()
-                    .expect("poseboard submit runs");
-                let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-                assert!(
-                    out.status.success(),
-                    "submit {name}: {}{stdout}",
-                    String::from_utf8_lossy(&out.stderr)
-                );
-                let last = stdout.lines().last().expect("a last line").to_string();
-                (
-                    name.to_string(),
-                    serde_json::from_str::<Value>(&last).expect("JSON"),
-                )
+                let printed = submit_and_wait(&server, &file, name, "synthA");
+                (name.to_string(), printed)
             })
             .collect();
         stop.store(true, Ordering::Relaxed);
@@ -114,16 +76,7 @@ fn terminated_connections_answer_503_never_500() {
 
     let answers = answers.into_inner().expect("answers");
     assert!(answers.len() > 50, "only {} reads", answers.len());
-    for (path, status, retry_after, text) in &answers {
-        assert!(
-            *status == 200 || *status == 503,
-            "{path} answered {status}: {text}"
-        );
-        if *status == 503 {
-            assert!(retry_after, "{path}: a 503 without Retry-After");
-            assert!(text.contains("nothing was changed"), "{path}: {text}");
-        }
-    }
+    assert_200_or_503(&answers);
 
     // Each upload ended done once, with the scores of `poseboard eval`.
     let synth_a = datasets.join("synthA");
@@ -147,7 +100,7 @@ fn terminated_connections_answer_503_never_500() {
     }
 
     // One line when an outage begins and one when it ends, not one per failed request.
-    let failed = answers.iter().filter(|a| a.1 == 503).count();
+    let failed = answers.iter().filter(|a| a.status == 503).count();
     let log = std::fs::read_to_string(data.join("server.log")).expect("log");
     let begun = log.matches("answering 503 until it is back").count();
     let ended = log.matches("the database answers again").count();

@@ -15,7 +15,10 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::common::{BIN, TestDb, cli_report, client, column, pg_exec, start, synth_with_results};
+use crate::common::{
+    Answer, TestDb, assert_200_or_503, cli_report, column, pg_exec, read_until, start,
+    submit_and_wait, synth_with_results,
+};
 use serde_json::Value;
 
 /// A PostgreSQL cluster in a temporary folder, stopped at once when this goes away.
@@ -219,51 +222,21 @@ fn a_restarted_postgresql_answers_503_never_500() {
         "/".to_string(),
     ];
     let stop = AtomicBool::new(false);
-    let answers: Mutex<Vec<(String, u16, bool, String)>> = Mutex::new(Vec::new());
+    let answers: Mutex<Vec<Answer>> = Mutex::new(Vec::new());
     let submitted: Vec<(PathBuf, Value)> = std::thread::scope(|s| {
         for reader in 0..3 {
             let (paths, stop, answers, base) = (&paths, &stop, &answers, &base);
-            s.spawn(move || {
-                let c = client();
-                let mut i = reader;
-                while !stop.load(Ordering::Relaxed) {
-                    let path = &paths[i % paths.len()];
-                    i += 1;
-                    let Ok(r) = c.get(format!("{base}{path}")).send() else {
-                        continue;
-                    };
-                    let status = r.status().as_u16();
-                    let retry_after = r.headers().contains_key("retry-after");
-                    let text = r.text().unwrap_or_default();
-                    answers.lock().expect("answers").push((
-                        path.clone(),
-                        status,
-                        retry_after,
-                        text,
-                    ));
-                    std::thread::sleep(Duration::from_millis(20));
-                }
-            });
+            let pause = Duration::from_millis(20);
+            s.spawn(move || read_until(base, paths, reader, pause, stop, answers));
         }
         let uploads = s.spawn(|| {
             files
                 .iter()
                 .map(|file| {
                     let name = file.file_name().expect("name").to_string_lossy();
-                    let method = name.split('_').next().expect("method").to_string();
-                    let out = Command::new(BIN)
-                        .arg("submit")
-                        .arg(file)
-                        .args(["--method", &method, "--dataset", "synthbig", "--json"])
-                        .env("POSEBOARD_SERVER", &base)
-                        .env("POSEBOARD_TOKEN", &server.token)
-                        .stdin(Stdio::null())
-                        .output()
-                        .expect("poseboard submit runs");
-                    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-                    assert!(out.status.success(), "submit {method}: {}", text(&out));
-                    let last = stdout.lines().last().expect("a last line");
-                    ((*file).clone(), serde_json::from_str(last).expect("JSON"))
+                    let method = name.split('_').next().expect("method");
+                    let printed = submit_and_wait(&server, file, method, "synthbig");
+                    ((*file).clone(), printed)
                 })
                 .collect::<Vec<_>>()
         });
@@ -283,16 +256,7 @@ fn a_restarted_postgresql_answers_503_never_500() {
 
     let answers = answers.into_inner().expect("answers");
     assert!(answers.len() > 20, "only {} reads", answers.len());
-    for (path, status, retry_after, text) in &answers {
-        assert!(
-            *status == 200 || *status == 503,
-            "{path} answered {status}: {text}"
-        );
-        if *status == 503 {
-            assert!(retry_after, "{path}: a 503 without Retry-After");
-            assert!(text.contains("nothing was changed"), "{path}: {text}");
-        }
-    }
+    assert_200_or_503(&answers);
 
     // Each upload done once, with the scores of `poseboard eval`.
     let dataset = datasets.join("synthbig");
