@@ -73,6 +73,13 @@ impl ParsedFiles {
         entries.truncate(keep);
     }
 
+    /// Drops the parse of `sha256`, a file no submission has any longer: no picture will ask
+    /// for it again, and a service whose users replace their uploads would otherwise hold their
+    /// deleted files until the budget pushed them out, its memory growing for hours.
+    pub fn forget(&self, sha256: &str) {
+        self.lock().retain(|(key, _)| key != sha256);
+    }
+
     /// The hashes held, most recently used first.
     pub fn held(&self) -> Vec<String> {
         self.lock().iter().map(|(key, _)| key.clone()).collect()
@@ -155,6 +162,25 @@ mod tests {
             .await
             .unwrap();
         assert_eq!(tiny.held(), ["big"]);
+    }
+
+    #[tokio::test]
+    async fn a_forgotten_file_is_dropped_and_parsed_again_when_asked_for() {
+        let cache = ParsedFiles::new(DEFAULT_BUDGET);
+        let parses = &AtomicUsize::new(0);
+        let parse = move || async move {
+            parses.fetch_add(1, Ordering::SeqCst);
+            Ok::<_, ()>(file(3))
+        };
+        for key in ["a", "b"] {
+            cache.get_or_parse(key, parse).await.unwrap();
+        }
+        cache.forget("a");
+        assert_eq!(cache.held(), ["b"]);
+        cache.forget("never held");
+        assert_eq!(cache.held(), ["b"]);
+        cache.get_or_parse("a", parse).await.unwrap();
+        assert_eq!(parses.load(Ordering::SeqCst), 3);
     }
 
     #[tokio::test]

@@ -9,6 +9,7 @@ use crate::error::{AppError, AppResult};
 use crate::store::accounts::User;
 use crate::store::audit::{AdminAction, AuditEntry};
 use crate::store::datasets::DatasetRow;
+use crate::store::submissions::Deleted;
 
 /// Applies a submission action (hide, unhide, rerun, delete) and records it.
 pub async fn submission_action(
@@ -27,14 +28,7 @@ pub async fn submission_action(
         }
         AdminAction::Delete => match app.store.delete_submission(id).await? {
             Some(deleted) => {
-                if deleted.file_unused {
-                    // The database copy went with the row; a disk copy of an older version goes too.
-                    let legacy = uploaded_file::legacy_path(
-                        &app.config.submissions_dir(),
-                        &deleted.file_sha256,
-                    );
-                    let _ = tokio::fs::remove_file(legacy).await;
-                }
+                discard_file(app, &deleted).await;
                 true
             }
             None => false,
@@ -112,4 +106,16 @@ pub async fn set_core(app: &App, actor: &User, name: &str, core: bool) -> AppRes
 /// The latest administrator actions (at most `limit`), newest first.
 pub async fn audit_log(app: &App, limit: i64) -> AppResult<Vec<AuditEntry>> {
     Ok(app.store.audit_log(limit).await?)
+}
+
+/// What stays of a deleted submission's file once no other submission has its content goes
+/// too: the database copy went with the row, a disk copy an older version kept is removed, and
+/// its parse for the target pictures is dropped from memory.
+pub(crate) async fn discard_file(app: &App, deleted: &Deleted) {
+    if deleted.file_unused {
+        let legacy =
+            uploaded_file::legacy_path(&app.config.submissions_dir(), &deleted.file_sha256);
+        let _ = tokio::fs::remove_file(legacy).await;
+        app.parsed_files.forget(&deleted.file_sha256);
+    }
 }

@@ -6,7 +6,6 @@
 //! owner confirms. Every change goes through the store, which bumps the board version.
 
 use crate::app::App;
-use crate::datasets::uploaded_file;
 use crate::domain::{SubmissionId, Visibility};
 use crate::error::{AppError, AppResult};
 use crate::preflight::{Preflight, RedFlag};
@@ -102,11 +101,6 @@ pub async fn delete(app: &App, user: &User, id: SubmissionId) -> AppResult<()> {
         .delete_submission(id)
         .await?
         .ok_or(AppError::NotFound)?;
-    if deleted.file_unused {
-        // The database copy went with the row; a disk copy of an older version goes too.
-        let legacy =
-            uploaded_file::legacy_path(&app.config.submissions_dir(), &deleted.file_sha256);
-        let _ = tokio::fs::remove_file(legacy).await;
-    }
+    moderation::discard_file(app, &deleted).await;
     Ok(())
 }
