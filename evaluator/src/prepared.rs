@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::content_hash::content_hash;
+use crate::content_hash::content_hash_cached;
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::progress::Progress;
@@ -206,7 +206,9 @@ impl Prepared {
 
 /// The prepared form an evaluation of `dataset` uses: the one in `dir`, or else in
 /// [`default_dir`] when that exists. `Ok(None)`: none there; `Err`: one there but unusable, with
-/// the reason (the caller says it and evaluates without).
+/// the reason (the caller says it and evaluates without). The dataset's content hash is taken
+/// with the digests cached in the folder ([`content_hash_cached`]), so that an unchanged dataset
+/// is stat'ed, not read, on every evaluation.
 pub fn find(
     dataset: &Dataset,
     dir: Option<&Path>,
@@ -217,7 +219,7 @@ pub fn find(
     if !dir.exists() {
         return Ok(None);
     }
-    let why = match content_hash(dataset) {
+    let why = match content_hash_cached(dataset, &dir) {
         Ok(hash) => match Prepared::open(&dir, dataset, &hash) {
             Ok(prepared) => return Ok(Some(prepared)),
             Err(why) => why.to_string(),
