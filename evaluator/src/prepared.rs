@@ -170,15 +170,15 @@ impl Prepared {
         }
     }
 
-    /// The verified file of one image; the message names the file and its problem.
+    /// The file of one image, its header and index verified (its blocks are checked as they
+    /// are read); the message names the file and its problem.
     pub(crate) fn image(
         &self,
         scene_id: u32,
         im_id: u32,
     ) -> std::result::Result<PreparedImage, String> {
         let path = image_path(&self.dir, scene_id, im_id);
-        let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        PreparedImage::parse(bytes, &self.stamp(scene_id, im_id))
+        PreparedImage::open(&path, &self.stamp(scene_id, im_id))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
 
@@ -308,7 +308,11 @@ pub fn prepare(
         }
         let path = image_path(dir, scene_id, im_id);
         let intact = if found.is_ok() {
-            match writer.image(scene_id, im_id) {
+            // Every block checked: an evaluation checks only those it reads.
+            match writer
+                .image(scene_id, im_id)
+                .and_then(|p| p.verify().map_err(|e| format!("{}: {e}", path.display())))
+            {
                 Ok(_) => true,
                 Err(problem) => {
                     repaired
