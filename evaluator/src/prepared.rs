@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::content_hash::content_hash;
+use crate::content_hash::content_hash_cached;
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::progress::Progress;
@@ -170,15 +170,15 @@ impl Prepared {
         }
     }
 
-    /// The verified file of one image; the message names the file and its problem.
+    /// The file of one image, its header and index verified (its blocks are checked as they
+    /// are read); the message names the file and its problem.
     pub(crate) fn image(
         &self,
         scene_id: u32,
         im_id: u32,
     ) -> std::result::Result<PreparedImage, String> {
         let path = image_path(&self.dir, scene_id, im_id);
-        let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        PreparedImage::parse(bytes, &self.stamp(scene_id, im_id))
+        PreparedImage::open(&path, &self.stamp(scene_id, im_id))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
 
@@ -206,7 +206,9 @@ impl Prepared {
 
 /// The prepared form an evaluation of `dataset` uses: the one in `dir`, or else in
 /// [`default_dir`] when that exists. `Ok(None)`: none there; `Err`: one there but unusable, with
-/// the reason (the caller says it and evaluates without).
+/// the reason (the caller says it and evaluates without). The dataset's content hash is taken
+/// with the digests cached in the folder ([`content_hash_cached`]), so that an unchanged dataset
+/// is stat'ed, not read, on every evaluation.
 pub fn find(
     dataset: &Dataset,
     dir: Option<&Path>,
@@ -217,7 +219,7 @@ pub fn find(
     if !dir.exists() {
         return Ok(None);
     }
-    let why = match content_hash(dataset) {
+    let why = match content_hash_cached(dataset, &dir) {
         Ok(hash) => match Prepared::open(&dir, dataset, &hash) {
             Ok(prepared) => return Ok(Some(prepared)),
             Err(why) => why.to_string(),
@@ -306,7 +308,11 @@ pub fn prepare(
         }
         let path = image_path(dir, scene_id, im_id);
         let intact = if found.is_ok() {
-            match writer.image(scene_id, im_id) {
+            // Every block checked: an evaluation checks only those it reads.
+            match writer
+                .image(scene_id, im_id)
+                .and_then(|p| p.verify().map_err(|e| format!("{}: {e}", path.display())))
+            {
                 Ok(_) => true,
                 Err(problem) => {
                     repaired

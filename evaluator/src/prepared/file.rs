@@ -1,7 +1,7 @@
 //! The file of one prepared image: its test depth and its ground-truth renders, LZ4-compressed,
-//! behind a header that ties the file to one dataset content and one evaluator and carries a
-//! checksum of everything after it. A file that fails any of these is refused as a whole, so a
-//! score is never computed from a stale, foreign or damaged file.
+//! behind a header that ties the file to one dataset content and one evaluator. A file that
+//! fails any check is refused, so a score is never computed from a stale, foreign or damaged
+//! file.
 //!
 //! The depth is cut into bands of [`BAND_ROWS`] rows compressed apart, so that an evaluation
 //! inflates only the rows its renders cover (as it does with a PNG, but also skipping the rows
@@ -9,8 +9,20 @@
 //! Depth that is an integer times the image's depth scale (every PNG and TIFF of BOP) is stored
 //! as those 16-bit integers, row-differenced, and turned back into millimetres with the very
 //! float32 product the depth reader uses; anything else is stored as float32 as is.
+//!
+//! The header is followed by an index of every block (its lengths and its CRC-32), with a
+//! checksum of its own, and then the blocks. Opening a file reads only the header and the
+//! index, and checks the file's size against it (a truncated or padded file is refused at
+//! once); a block is read (positioned reads) and checked against its CRC when it is asked for.
+//! Reading whole files and checksumming all of them was 15 % of a one-thread evaluation of a
+//! large set, though an evaluation needs only the bands its renders cover and the renders of
+//! the instances its estimates meet. A damaged block is thus found when it is needed, or by
+//! [`PreparedImage::verify`], which a preparation runs on every file it keeps.
 
+use std::fs::File;
 use std::ops::Range;
+use std::os::unix::fs::FileExt;
+use std::path::Path;
 
 use crate::depth_files::DepthRows;
 use crate::render::DepthWindow;
@@ -19,7 +31,8 @@ use crate::render::DepthWindow;
 const MAGIC: &[u8; 8] = b"PBPREP\r\n";
 
 /// The layout of the files; a change to it, or to what is stored, makes older files stale.
-pub const FORMAT: u32 = 1;
+/// 2: an index of the blocks with a CRC-32 each, instead of one checksum of the whole file.
+pub const FORMAT: u32 = 2;
 
 /// Rows per separately compressed band of depth.
 pub const BAND_ROWS: u32 = 16;
@@ -27,6 +40,10 @@ pub const BAND_ROWS: u32 = 16;
 /// Images larger than this are refused (a BOP image has at most a few million pixels); it keeps
 /// a damaged size from asking for an absurd allocation.
 const MAX_PIXELS: u64 = 1 << 28;
+
+/// Bytes read first on opening a file: the header and index of an image of up to about 4,000
+/// rows with a few dozen instances; a longer index is read with a second read.
+const FIRST_READ: u64 = 4096;
 
 /// What a file must have been made for: one dataset content, one evaluator, one image.
 #[derive(Clone, Copy, Debug)]
@@ -80,9 +97,8 @@ impl ImageData {
             })
     }
 
-    /// The file's bytes: header, then the compressed payload.
+    /// The file's bytes: header, index, then the compressed blocks.
     pub fn encode(&self, stamp: &Stamp) -> Vec<u8> {
-        let mut payload = Vec::new();
         let kind = if self
             .depth
             .iter()
@@ -92,14 +108,16 @@ impl ImageData {
         } else {
             DepthKind::Floats
         };
-        put_u32(&mut payload, self.width);
-        put_u32(&mut payload, self.height);
-        payload.push(match kind {
+        let mut index = Vec::new();
+        let mut blocks = Vec::new();
+        put_u32(&mut index, self.width);
+        put_u32(&mut index, self.height);
+        index.push(match kind {
             DepthKind::Scaled => 0,
             DepthKind::Floats => 1,
         });
-        payload.extend_from_slice(&self.depth_scale.to_le_bytes());
-        put_u32(&mut payload, BAND_ROWS);
+        index.extend_from_slice(&self.depth_scale.to_le_bytes());
+        put_u32(&mut index, BAND_ROWS);
         let width = self.width.max(1) as usize;
         for band in self.depth.chunks(width * BAND_ROWS as usize) {
             let mut raw = Vec::with_capacity(band.len() * 4);
@@ -118,27 +136,28 @@ impl ImageData {
                     }
                 }
             }
-            put_block(&mut payload, &raw);
+            put_block(&mut index, &mut blocks, &raw);
         }
-        put_u32(&mut payload, self.gts.len() as u32);
+        put_u32(&mut index, self.gts.len() as u32);
         for w in &self.gts {
             for v in [w.x0, w.y0, w.width, w.height] {
-                put_u32(&mut payload, v);
+                put_u32(&mut index, v);
             }
             let raw: Vec<u8> = w.data.iter().flat_map(|d| d.to_le_bytes()).collect();
-            put_block(&mut payload, &raw);
+            put_block(&mut index, &mut blocks, &raw);
         }
 
-        let mut out = Vec::with_capacity(payload.len() + 128);
+        let mut out = Vec::with_capacity(index.len() + blocks.len() + 128);
         out.extend_from_slice(MAGIC);
         put_u32(&mut out, FORMAT);
         put_str(&mut out, stamp.evaluator);
         put_str(&mut out, stamp.content_hash);
         put_u32(&mut out, stamp.scene_id);
         put_u32(&mut out, stamp.im_id);
-        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-        put_u32(&mut out, crc32fast::hash(&payload));
-        out.extend_from_slice(&payload);
+        put_u32(&mut out, index.len() as u32);
+        put_u32(&mut out, crc32fast::hash(&index));
+        out.extend_from_slice(&index);
+        out.extend_from_slice(&blocks);
         out
     }
 }
@@ -168,12 +187,14 @@ fn put_str(out: &mut Vec<u8>, s: &str) {
     out.extend_from_slice(s.as_bytes());
 }
 
-/// Raw length, compressed length, compressed bytes.
-fn put_block(out: &mut Vec<u8>, raw: &[u8]) {
+/// The block's raw length, compressed length and CRC-32 into the index, its compressed bytes
+/// after the others.
+fn put_block(index: &mut Vec<u8>, blocks: &mut Vec<u8>, raw: &[u8]) {
     let compressed = lz4_flex::block::compress(raw);
-    put_u32(out, raw.len() as u32);
-    put_u32(out, compressed.len() as u32);
-    out.extend_from_slice(&compressed);
+    put_u32(index, raw.len() as u32);
+    put_u32(index, compressed.len() as u32);
+    put_u32(index, crc32fast::hash(&compressed));
+    blocks.extend_from_slice(&compressed);
 }
 
 /// Reads the fields of a file in order; running out of bytes is an error, never a panic.
@@ -209,38 +230,55 @@ impl<'a> Cursor<'a> {
         std::str::from_utf8(self.take(n)?).map_err(|_| "a header field is not UTF-8".to_string())
     }
 
-    /// A compressed block: (raw length, compressed bytes).
-    fn block(&mut self) -> Result<(usize, Range<usize>), String> {
-        let raw = self.u32()? as usize;
-        let n = self.u32()? as usize;
-        let start = self.at;
-        self.take(n)?;
-        Ok((raw, start..start + n))
+    /// A block's index entry; `at` is where the block starts in the file, moved past it.
+    fn block(&mut self, at: &mut u64) -> Result<Block, String> {
+        let (raw, len, crc) = (self.u32()? as usize, self.u32()?, self.u32()?);
+        let block = Block {
+            raw,
+            at: *at,
+            len: len as usize,
+            crc,
+        };
+        *at += u64::from(len);
+        Ok(block)
     }
 }
 
-/// A prepared image file whose header and checksum were verified; its blocks are inflated on
-/// demand.
+/// Where a compressed block is in its file, and what it must be.
+#[derive(Clone, Debug)]
+struct Block {
+    /// Length once inflated.
+    raw: usize,
+    at: u64,
+    len: usize,
+    crc: u32,
+}
+
+/// A prepared image file whose header and index were verified; its blocks are read, checked
+/// and inflated on demand.
 #[derive(Debug)]
 pub struct PreparedImage {
-    bytes: Vec<u8>,
+    file: File,
     width: u32,
     height: u32,
     kind: DepthKind,
     depth_scale: f32,
     band_rows: u32,
-    /// Per band of depth, its compressed block.
-    bands: Vec<Range<usize>>,
-    /// Per ground-truth instance, its window and compressed block.
-    gts: Vec<(DepthWindow, Range<usize>)>,
+    /// Per band of depth, its block.
+    bands: Vec<Block>,
+    /// Per ground-truth instance, its window and block.
+    gts: Vec<(DepthWindow, Block)>,
 }
 
 impl PreparedImage {
-    /// Checks `bytes` against `stamp` and its checksum, and indexes its blocks; the message
-    /// says what is wrong.
-    pub fn parse(bytes: Vec<u8>, stamp: &Stamp) -> Result<PreparedImage, String> {
+    /// Opens the file at `path`, checks its header against `stamp`, its index against its
+    /// checksum and its size against its index; the message says what is wrong.
+    pub fn open(path: &Path, stamp: &Stamp) -> Result<PreparedImage, String> {
+        let file = File::open(path).map_err(|e| e.to_string())?;
+        let size = file.metadata().map_err(|e| e.to_string())?.len();
+        let mut head = read_at(&file, 0, FIRST_READ.min(size) as usize)?;
         let mut c = Cursor {
-            bytes: &bytes,
+            bytes: &head,
             at: 0,
         };
         if c.take(MAGIC.len()).ok() != Some(MAGIC.as_slice()) {
@@ -273,19 +311,32 @@ impl PreparedImage {
                 stamp.scene_id, stamp.im_id
             ));
         }
-        let len = u64::from_le_bytes(c.array()?);
-        let crc = c.u32()?;
-        let start = c.at;
-        if (bytes.len() - start) as u64 != len {
+        let (index_len, index_crc) = (u64::from(c.u32()?), c.u32()?);
+        let index_at = c.at as u64;
+        let index_end = index_at + index_len;
+        if index_end > size {
             return Err(format!(
-                "truncated or padded: {} bytes of data where the header states {len}",
-                bytes.len() - start
+                "truncated: {size} bytes, ending inside the index of {index_len} bytes"
             ));
         }
-        if crc32fast::hash(&bytes[start..]) != crc {
-            return Err("checksum mismatch: the file is damaged".into());
+        if index_end > head.len() as u64 {
+            let rest = read_at(
+                &file,
+                head.len() as u64,
+                (index_end - head.len() as u64) as usize,
+            )?;
+            head.extend_from_slice(&rest);
+        }
+        let index = &head[index_at as usize..index_end as usize];
+        if crc32fast::hash(index) != index_crc {
+            return Err("checksum mismatch: the file's index is damaged".into());
         }
 
+        let mut c = Cursor {
+            bytes: index,
+            at: 0,
+        };
+        let mut at = index_end;
         let (width, height) = (c.u32()?, c.u32()?);
         if u64::from(width) * u64::from(height) > MAX_PIXELS {
             return Err(format!("{width}x{height} pixels is not a depth image size"));
@@ -308,14 +359,14 @@ impl PreparedImage {
         let mut bands = Vec::with_capacity(n_bands as usize);
         for b in 0..n_bands {
             let rows = band_rows.min(height - b * band_rows);
-            let (raw, block) = c.block()?;
-            if raw != (rows * width) as usize * sample {
+            let block = c.block(&mut at)?;
+            if block.raw != (rows * width) as usize * sample {
                 return Err(format!("depth band {b} has the wrong length"));
             }
             bands.push(block);
         }
         let n_gts = c.u32()? as usize;
-        let mut gts = Vec::with_capacity(n_gts.min(bytes.len()));
+        let mut gts = Vec::with_capacity(n_gts.min(index.len()));
         for g in 0..n_gts {
             let w = DepthWindow {
                 x0: c.u32()?,
@@ -324,19 +375,24 @@ impl PreparedImage {
                 height: c.u32()?,
                 data: Vec::new(),
             };
-            let (raw, block) = c.block()?;
+            let block = c.block(&mut at)?;
             let fits = u64::from(w.x0) + u64::from(w.width) <= u64::from(width)
                 && u64::from(w.y0) + u64::from(w.height) <= u64::from(height);
-            if !fits || raw != (w.width * w.height) as usize * 4 {
+            if !fits || block.raw != (w.width * w.height) as usize * 4 {
                 return Err(format!("ground-truth render {g} does not fit the image"));
             }
             gts.push((w, block));
         }
-        if c.at != bytes.len() {
-            return Err("data after the last ground-truth render".into());
+        if c.at != index.len() {
+            return Err("data after the index's last ground-truth render".into());
+        }
+        if at != size {
+            return Err(format!(
+                "truncated or padded: {size} bytes where the index states {at}"
+            ));
         }
         Ok(PreparedImage {
-            bytes,
+            file,
             width,
             height,
             kind,
@@ -357,14 +413,46 @@ impl PreparedImage {
         self.gts.len()
     }
 
-    fn inflate(&self, block: &Range<usize>, raw: usize) -> Result<Vec<u8>, String> {
-        let mut out = vec![0u8; raw];
-        let n = lz4_flex::block::decompress_into(&self.bytes[block.clone()], &mut out)
-            .map_err(|e| format!("a compressed block is invalid: {e}"))?;
-        if n != raw {
-            return Err("a compressed block has the wrong length".into());
+    /// The compressed bytes of `blocks`, which follow each other in the file, read at once.
+    fn read_blocks(&self, blocks: &[Block]) -> Result<Vec<u8>, String> {
+        let Some(first) = blocks.first() else {
+            return Ok(Vec::new());
+        };
+        read_at(&self.file, first.at, blocks.iter().map(|b| b.len).sum())
+    }
+
+    /// One block's bytes (`bytes`, as read), checked against its CRC and inflated.
+    fn inflate(block: &Block, bytes: &[u8], what: &str) -> Result<Vec<u8>, String> {
+        if crc32fast::hash(bytes) != block.crc {
+            return Err(format!("checksum mismatch: {what} is damaged"));
+        }
+        let mut out = vec![0u8; block.raw];
+        let n = lz4_flex::block::decompress_into(bytes, &mut out)
+            .map_err(|e| format!("{what} is invalid: {e}"))?;
+        if n != block.raw {
+            return Err(format!("{what} has the wrong length"));
         }
         Ok(out)
+    }
+
+    /// Reads every block and checks it against its CRC, without inflating: a file that passes
+    /// is as it was written.
+    pub fn verify(&self) -> Result<(), String> {
+        let all: Vec<Block> = self
+            .bands
+            .iter()
+            .chain(self.gts.iter().map(|(_, b)| b))
+            .cloned()
+            .collect();
+        let bytes = self.read_blocks(&all)?;
+        let mut at = 0;
+        for (i, block) in all.iter().enumerate() {
+            if crc32fast::hash(&bytes[at..at + block.len]) != block.crc {
+                return Err(format!("checksum mismatch: block {i} is damaged"));
+            }
+            at += block.len;
+        }
+        Ok(())
     }
 
     /// The whole bands of depth covering `rows` (clamped to the image).
@@ -376,11 +464,15 @@ impl PreparedImage {
         let (b0, b1) = (y0 / self.band_rows, y1.div_ceil(self.band_rows));
         let w = self.width as usize;
         let mut data = Vec::with_capacity(w * ((b1 - b0) * self.band_rows) as usize);
-        for b in b0..b1 {
-            let rows = self.band_rows.min(self.height - b * self.band_rows) as usize;
+        let blocks = &self.bands[b0 as usize..b1 as usize];
+        let bytes = self.read_blocks(blocks)?;
+        let mut at = 0;
+        for (b, block) in (b0..b1).zip(blocks) {
+            let what = format!("depth band {b}");
+            let raw = Self::inflate(block, &bytes[at..at + block.len], &what)?;
+            at += block.len;
             match self.kind {
                 DepthKind::Scaled => {
-                    let raw = self.inflate(&self.bands[b as usize], rows * w * 2)?;
                     let mut prev = 0u16;
                     let scale = self.depth_scale;
                     data.extend(raw.as_chunks::<2>().0.iter().map(|&b| {
@@ -389,7 +481,6 @@ impl PreparedImage {
                     }));
                 }
                 DepthKind::Floats => {
-                    let raw = self.inflate(&self.bands[b as usize], rows * w * 4)?;
                     data.extend(
                         raw.as_chunks::<4>()
                             .0
@@ -413,7 +504,9 @@ impl PreparedImage {
             .gts
             .get(i)
             .ok_or_else(|| format!("no render of ground-truth instance {i}"))?;
-        let raw = self.inflate(block, (w.width * w.height) as usize * 4)?;
+        let bytes = self.read_blocks(std::slice::from_ref(block))?;
+        let what = format!("the render of ground-truth instance {i}");
+        let raw = Self::inflate(block, &bytes, &what)?;
         Ok(DepthWindow {
             data: raw
                 .as_chunks::<4>()
@@ -439,6 +532,19 @@ impl PreparedImage {
     }
 }
 
+/// `len` bytes of `file` from `at`; a file that ends before is truncated.
+fn read_at(file: &File, at: u64, len: usize) -> Result<Vec<u8>, String> {
+    let mut buf = vec![0u8; len];
+    file.read_exact_at(&mut buf, at)
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => {
+                format!("truncated: ends before byte {}", at + len as u64)
+            }
+            _ => e.to_string(),
+        })?;
+    Ok(buf)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -450,6 +556,13 @@ mod tests {
             scene_id: 1,
             im_id: 2,
         }
+    }
+
+    /// `bytes` written to a file in `dir` and opened.
+    fn open(dir: &Path, bytes: &[u8], stamp: &Stamp) -> Result<PreparedImage, String> {
+        let path = dir.join("image.pbprep");
+        std::fs::write(&path, bytes).unwrap();
+        PreparedImage::open(&path, stamp)
     }
 
     fn image(depth_scale: f32, depth: Vec<f32>) -> ImageData {
@@ -476,9 +589,11 @@ mod tests {
         let scale = 0.1f32;
         let scaled: Vec<f32> = (0..200u16).map(|v| f32::from(v * 7) * scale).collect();
         let floats: Vec<f32> = (0..200).map(|v| v as f32 * 0.37 + 0.001).collect();
+        let dir = tempfile::tempdir().unwrap();
         for data in [image(scale, scaled), image(scale, floats)] {
             let bytes = data.encode(&stamp());
-            let back = PreparedImage::parse(bytes, &stamp()).unwrap();
+            let back = open(dir.path(), &bytes, &stamp()).unwrap();
+            back.verify().unwrap();
             assert!(back.decode().unwrap().identical(&data));
             // A band from the middle: whole bands covering rows 20..22.
             let rows = back.rows(20..22).unwrap();
@@ -490,7 +605,8 @@ mod tests {
     #[test]
     fn a_file_for_another_image_dataset_or_evaluator_is_refused() {
         let bytes = image(1.0, vec![1.0; 200]).encode(&stamp());
-        let other = |s: Stamp| PreparedImage::parse(bytes.clone(), &s).unwrap_err();
+        let dir = tempfile::tempdir().unwrap();
+        let other = |s: Stamp| open(dir.path(), &bytes, &s).unwrap_err();
         assert!(
             other(Stamp {
                 im_id: 3,
@@ -514,17 +630,30 @@ mod tests {
         );
     }
 
+    /// A truncated file is refused on opening (its size disagrees with its index); a flipped
+    /// byte is refused on opening when it is in the header or the index, else by the CRC of its
+    /// block, when that block is read and by `verify`.
     #[test]
     fn every_truncation_and_every_flipped_byte_is_refused() {
         let bytes = image(1.0, vec![3.0; 200]).encode(&stamp());
+        let dir = tempfile::tempdir().unwrap();
+        let intact = open(dir.path(), &bytes, &stamp()).unwrap();
+        let blocks_at = intact.bands[0].at as usize;
         for n in 0..bytes.len() {
-            assert!(PreparedImage::parse(bytes[..n].to_vec(), &stamp()).is_err());
+            assert!(
+                open(dir.path(), &bytes[..n], &stamp()).is_err(),
+                "{n} bytes"
+            );
             let mut flipped = bytes.clone();
             flipped[n] ^= 0x10;
-            assert!(
-                PreparedImage::parse(flipped, &stamp()).is_err(),
-                "byte {n} flipped"
-            );
+            match open(dir.path(), &flipped, &stamp()) {
+                Err(_) => assert!(n < blocks_at, "byte {n} of a block refused on opening"),
+                Ok(file) => {
+                    assert!(n >= blocks_at, "byte {n} of the header or index flipped");
+                    assert!(file.verify().unwrap_err().contains("checksum mismatch"));
+                    assert!(file.decode().unwrap_err().contains("checksum mismatch"));
+                }
+            }
         }
     }
 }

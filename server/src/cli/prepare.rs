@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use evaluator::content_hash::content_hash;
+use evaluator::content_hash::content_hash_cached;
 use evaluator::prepared::{self, Prepared};
 use evaluator::{Dataset, Progress};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -45,7 +45,8 @@ pub fn run(args: PrepareArgs) -> Result<()> {
     let pool = worker_pool(args.threads)?;
     let bar = ImagesBar::new();
     let done = pool.install(|| -> Result<_> {
-        let hash = content_hash(&dataset).map_err(anyhow::Error::msg)?;
+        // The digests cached in the folder by earlier runs spare reading unchanged files.
+        let hash = content_hash_cached(&dataset, &out).map_err(anyhow::Error::msg)?;
         prepared::prepare(&dataset, &hash, &out, &bar, &AtomicBool::new(false))
             .context("preparation failed")
     })?;
