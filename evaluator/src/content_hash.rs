@@ -267,6 +267,16 @@ mod tests {
         }
     }
 
+    /// An aged copy of the reference dataset in `dir`, with an empty folder for its cache.
+    fn aged_copy(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf, Dataset) {
+        let (root, prepared) = (dir.join("synthA"), dir.join("prepared"));
+        copy_dir(&reference(), &root);
+        age(&root);
+        std::fs::create_dir(&prepared).unwrap();
+        let dataset = Dataset::load(&root).unwrap();
+        (root, prepared, dataset)
+    }
+
     fn read_cache(dir: &Path) -> Cache {
         serde_json::from_slice(&std::fs::read(dir.join(CACHE_FILE)).unwrap()).unwrap()
     }
@@ -274,11 +284,7 @@ mod tests {
     #[test]
     fn the_cached_hash_is_the_full_hash_and_a_matching_stat_is_trusted() {
         let dir = tempfile::tempdir().unwrap();
-        let (root, prepared) = (dir.path().join("synthA"), dir.path().join("prepared"));
-        copy_dir(&reference(), &root);
-        age(&root);
-        std::fs::create_dir(&prepared).unwrap();
-        let dataset = Dataset::load(&root).unwrap();
+        let (_, prepared, dataset) = aged_copy(dir.path());
         let full = content_hash(&dataset).unwrap();
         assert_eq!(content_hash_cached(&dataset, &prepared).unwrap(), full);
         let cache = read_cache(&prepared);
@@ -311,11 +317,7 @@ mod tests {
     #[test]
     fn a_changed_depth_image_or_model_is_hashed_again_with_a_cache_present() {
         let dir = tempfile::tempdir().unwrap();
-        let (root, prepared) = (dir.path().join("synthA"), dir.path().join("prepared"));
-        copy_dir(&reference(), &root);
-        age(&root);
-        std::fs::create_dir(&prepared).unwrap();
-        let dataset = Dataset::load(&root).unwrap();
+        let (root, prepared, dataset) = aged_copy(dir.path());
         let original = content_hash_cached(&dataset, &prepared).unwrap();
         let cached = |what: &str| {
             let hash = content_hash_cached(&dataset, &prepared).unwrap();
