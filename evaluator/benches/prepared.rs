@@ -7,14 +7,15 @@
 //! By default the reference set (tests/fixtures/reference) and its result files; any BOP
 //! dataset folder and folder of result files can be named instead. "Loading included" means
 //! everything after the dataset is loaded, as the service holds it: parsing the result file,
-//! for the prepared path the content hash and opening the prepared form, and evaluating.
+//! for the prepared path finding the form current as `poseboard eval` does (the content hash
+//! from the digests kept beside it) and opening it, and evaluating.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use evaluator::content_hash::content_hash;
-use evaluator::prepared::{Prepared, prepare};
+use evaluator::prepared::{self, prepare};
 use evaluator::protocol::Protocol;
 use evaluator::{Dataset, NoProgress, evaluate_prepared, results};
 
@@ -68,8 +69,9 @@ fn main() {
                 let evaluation = one.install(|| {
                     let res = results::load_results(file).expect("result file");
                     let form = prepared.then(|| {
-                        let hash = content_hash(&dataset).expect("content hash");
-                        Prepared::open(cache.path(), &dataset, &hash).expect("current")
+                        prepared::find(&dataset, Some(cache.path()))
+                            .expect("current")
+                            .expect("prepared")
                     });
                     let e = evaluate_prepared(
                         &dataset,

@@ -270,6 +270,15 @@ impl ImageRenders {
             });
         y0.min(y1)..y1
     }
+
+    /// The pixels each render covers.
+    fn boxes(&self) -> Vec<PixelBox> {
+        self.estimates
+            .values()
+            .chain(self.gts.values())
+            .filter_map(PixelBox::of_window)
+            .collect()
+    }
 }
 
 impl Context<'_> {
@@ -364,7 +373,7 @@ impl Context<'_> {
         Ok((test, renders))
     }
 
-    /// The same from a prepared image: its depth bands and ground-truth renders are read, not
+    /// The same from a prepared image: its depth tiles and ground-truth renders are read, not
     /// computed.
     fn read_prepared(
         &self,
@@ -381,7 +390,7 @@ impl Context<'_> {
             self.vsd_pairs(work, image, actual)
         };
         let renders = self.render_pairs(&pairs, image, actual, |_, _, gi| prepared.gt(gi))?;
-        let test = TestImage::from_rows(prepared.rows(renders.rows())?, &image.camera);
+        let test = TestImage::from_region(prepared.region(&renders.boxes())?, &image.camera);
         Ok((test, renders))
     }
 

@@ -11,9 +11,10 @@
 //! read the folder at once. It is an accelerator and never a source of truth: a folder made for
 //! other content or by another evaluator is refused as a whole ([`Unusable`]), a damaged file is
 //! refused by its checksum and that image is computed from the dataset instead
-//! ([`Prepared::damaged`]), and [`prepare`] rebuilds whatever is refused. On opening, one image
-//! is also computed afresh and compared with its file, so that a renderer changed without a new
-//! version number cannot score from old renders.
+//! ([`Prepared::damaged`]), and [`prepare`] rebuilds whatever is refused. "The evaluator" is
+//! its source, fingerprinted at build time, not only its version number: a renderer changed
+//! between releases makes every older form stale, so opening a form need not compute an image
+//! afresh to find out (it did, which cost more than evaluating a small result file).
 
 pub mod file;
 
@@ -64,8 +65,6 @@ pub enum Unusable {
     Stale { evaluator: String },
     /// Made for another content of the dataset.
     Foreign { content_hash: String },
-    /// An image computed afresh differs from its file.
-    Disagrees(String),
 }
 
 impl fmt::Display for Unusable {
@@ -82,7 +81,6 @@ impl fmt::Display for Unusable {
                 f,
                 "foreign: made for dataset content {content_hash}, which is not this dataset's"
             ),
-            Unusable::Disagrees(e) => write!(f, "its files disagree with this evaluator: {e}"),
         }
     }
 }
@@ -100,11 +98,7 @@ pub struct Prepared {
 impl Prepared {
     /// The prepared form in `dir`, if it was made for `content_hash` (the dataset's
     /// [`crate::content_hash::content_hash`]) by this evaluator.
-    pub fn open(
-        dir: &Path,
-        dataset: &Dataset,
-        content_hash: &str,
-    ) -> std::result::Result<Prepared, Unusable> {
+    pub fn open(dir: &Path, content_hash: &str) -> std::result::Result<Prepared, Unusable> {
         let manifest = match std::fs::read(dir.join(MANIFEST)) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(Unusable::Missing),
             Err(e) => return Err(Unusable::Unreadable(e.to_string())),
@@ -122,39 +116,12 @@ impl Prepared {
                 content_hash: manifest.content_hash,
             });
         }
-        let prepared = Prepared {
+        Ok(Prepared {
             dir: dir.to_path_buf(),
             content_hash: content_hash.to_string(),
             evaluator,
             damaged: Mutex::new(Vec::new()),
-        };
-        prepared.self_check(dataset)?;
-        Ok(prepared)
-    }
-
-    /// Computes the first target image afresh and compares it with its file (a damaged file
-    /// is left to the per-image check).
-    fn self_check(&self, dataset: &Dataset) -> std::result::Result<(), Unusable> {
-        let Some(&(scene_id, im_id)) = target_images(dataset).first() else {
-            return Ok(());
-        };
-        let Ok(stored) = self.image(scene_id, im_id) else {
-            return Ok(());
-        };
-        let objects: BTreeSet<u32> = dataset.scenes[&scene_id].images[&im_id]
-            .gt
-            .iter()
-            .map(|g| g.obj_id)
-            .collect();
-        let fresh = compute_image(dataset, &models(dataset, Some(&objects)), scene_id, im_id)
-            .map_err(|e| Unusable::Disagrees(e.to_string()))?;
-        match stored.decode() {
-            Ok(stored) if stored.identical(&fresh) => Ok(()),
-            Ok(_) => Err(Unusable::Disagrees(format!(
-                "scene {scene_id} image {im_id} comes out differently"
-            ))),
-            Err(e) => Err(Unusable::Disagrees(e)),
-        }
+        })
     }
 
     pub fn dir(&self) -> &Path {
@@ -220,7 +187,7 @@ pub fn find(
         return Ok(None);
     }
     let why = match content_hash_cached(dataset, &dir) {
-        Ok(hash) => match Prepared::open(&dir, dataset, &hash) {
+        Ok(hash) => match Prepared::open(&dir, &hash) {
             Ok(prepared) => return Ok(Some(prepared)),
             Err(why) => why.to_string(),
         },
@@ -282,7 +249,7 @@ pub fn prepare(
 ) -> Result<Preparation> {
     let images = target_images(dataset);
     progress.start(images.len() as u64);
-    let found = Prepared::open(dir, dataset, content_hash);
+    let found = Prepared::open(dir, content_hash);
     if found.is_err() {
         match std::fs::remove_file(dir.join(MANIFEST)) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
@@ -298,7 +265,7 @@ pub fn prepare(
         evaluator: evaluator_version(),
         damaged: Mutex::new(Vec::new()),
     };
-    let models = models(dataset, None);
+    let models = models(dataset);
     let bytes = AtomicU64::new(0);
     let done = AtomicUsize::new(0);
     let repaired = Mutex::new(Vec::new());
@@ -378,12 +345,11 @@ fn image_path(dir: &Path, scene_id: u32, im_id: u32) -> PathBuf {
         .join(format!("{im_id:06}.pbprep"))
 }
 
-/// Render-ready models of the dataset's objects (of `only` those, when given).
-fn models(dataset: &Dataset, only: Option<&BTreeSet<u32>>) -> HashMap<u32, Model> {
+/// Render-ready models of the dataset's objects.
+fn models(dataset: &Dataset) -> HashMap<u32, Model> {
     dataset
         .objects
         .iter()
-        .filter(|(id, _)| only.is_none_or(|o| o.contains(id)))
         .map(|(&id, o)| (id, Model::new(&o.mesh)))
         .collect()
 }

@@ -1,7 +1,7 @@
 //! Prepared datasets: every score with and without the prepared form is the same to the bit, on
-//! every reference result file under both protocols, and a stale, foreign, disagreeing or
-//! damaged prepared form is never scored from (it is refused, the image is computed from the
-//! dataset, and `prepare` rebuilds it).
+//! every reference result file under both protocols, and a stale, foreign or damaged prepared
+//! form is never scored from (it is refused, the image is computed from the dataset, and
+//! `prepare` rebuilds it).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -112,7 +112,7 @@ fn assert_identical(a: &Evaluation, b: &Evaluation, what: &str) {
 fn every_reference_score_is_bit_identical_with_the_prepared_form() {
     let s = setup();
     assert_eq!(prepare_now(&s), Outcome::Created);
-    let prepared = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let prepared = Prepared::open(&s.prepared, &s.hash).unwrap();
     let mut vsd_pairs = 0;
     for file in result_files() {
         for protocol in [Protocol::eccv18(), Protocol::bop19()] {
@@ -131,7 +131,7 @@ fn every_reference_score_is_bit_identical_with_the_prepared_form() {
 fn the_prepared_form_replaces_the_depth_images() {
     let s = setup();
     prepare_now(&s);
-    let prepared = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let prepared = Prepared::open(&s.prepared, &s.hash).unwrap();
     let file = fixtures().join("results/noisemedium_synthA-test.csv");
     let before = run(&s.dataset, &file, &Protocol::bop19(), None);
     // With the depth images gone, only the prepared form can give the same scores.
@@ -149,7 +149,7 @@ fn the_prepared_form_replaces_the_depth_images() {
 fn a_current_form_is_kept_and_a_stale_one_is_refused_and_rebuilt() {
     let s = setup();
     assert_eq!(
-        Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap_err(),
+        Prepared::open(&s.prepared, &s.hash).unwrap_err(),
         Unusable::Missing
     );
     assert_eq!(prepare_now(&s), Outcome::Created);
@@ -160,15 +160,15 @@ fn a_current_form_is_kept_and_a_stale_one_is_refused_and_rebuilt() {
     let old = text.replace(&evaluator_version(), "0.0.1 format 0");
     assert_ne!(old, text);
     std::fs::write(&manifest, old).unwrap();
-    let refused = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap_err();
+    let refused = Prepared::open(&s.prepared, &s.hash).unwrap_err();
     assert!(matches!(refused, Unusable::Stale { .. }), "{refused}");
     assert!(refused.to_string().contains("made by evaluator 0.0.1"));
     assert_eq!(prepare_now(&s), Outcome::Rebuilt(refused));
-    Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    Prepared::open(&s.prepared, &s.hash).unwrap();
 
     std::fs::write(&manifest, "{ not json").unwrap();
     assert!(matches!(
-        Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap_err(),
+        Prepared::open(&s.prepared, &s.hash).unwrap_err(),
         Unusable::Unreadable(_)
     ));
 }
@@ -188,7 +188,7 @@ fn a_form_made_for_other_content_is_refused_and_rebuilt() {
     let old_hash = std::mem::replace(&mut s.hash, content_hash(&s.dataset).unwrap());
     assert_ne!(old_hash, s.hash);
 
-    let refused = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap_err();
+    let refused = Prepared::open(&s.prepared, &s.hash).unwrap_err();
     assert_eq!(
         refused,
         Unusable::Foreign {
@@ -199,7 +199,7 @@ fn a_form_made_for_other_content_is_refused_and_rebuilt() {
     let one = s.prepared.join("000001/000002.pbprep");
     let old_file = std::fs::read(&one).unwrap();
     assert_eq!(prepare_now(&s), Outcome::Rebuilt(refused));
-    let prepared = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let prepared = Prepared::open(&s.prepared, &s.hash).unwrap();
     std::fs::write(&one, &old_file).unwrap();
     let file = fixtures().join("results/noisemedium_synthA-test.csv");
     let plain = run(&s.dataset, &file, &Protocol::bop19(), None);
@@ -214,7 +214,7 @@ fn a_form_made_for_other_content_is_refused_and_rebuilt() {
 fn a_truncated_file_is_never_scored_from_and_is_rebuilt() {
     let s = setup();
     prepare_now(&s);
-    let prepared = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let prepared = Prepared::open(&s.prepared, &s.hash).unwrap();
     let file = fixtures().join("results/noisemedium_synthA-test.csv");
     let plain = run(&s.dataset, &file, &Protocol::eccv18(), None);
 
@@ -238,7 +238,7 @@ fn a_truncated_file_is_never_scored_from_and_is_rebuilt() {
         *b ^= 0x01;
     }
     std::fs::write(&one, &flipped).unwrap();
-    let again = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let again = Prepared::open(&s.prepared, &s.hash).unwrap();
     let fast = run(&s.dataset, &file, &Protocol::eccv18(), Some(&again));
     assert_identical(&plain, &fast, "one damaged file");
     assert!(again.damaged()[0].contains("checksum mismatch"));
@@ -253,28 +253,43 @@ fn a_truncated_file_is_never_scored_from_and_is_rebuilt() {
 }
 
 #[test]
-fn a_form_whose_renders_differ_from_this_evaluator_is_refused() {
+fn a_form_made_by_other_code_of_the_same_version_is_stale() {
     let s = setup();
     prepare_now(&s);
-    // Rewrite the first image's file with a valid checksum but one ground-truth depth changed,
-    // as a renderer changed without a new version would leave it.
+    // The same version number and format, built from other source (a renderer changed between
+    // releases): the manifest and every file name that evaluator.
+    let this = evaluator_version();
+    let (version, fingerprint) = this.rsplit_once(" source ").unwrap();
+    assert_eq!(fingerprint.len(), 16, "{this}");
+    let other = format!("{version} source {}", "0".repeat(16));
+    let manifest = s.prepared.join("manifest.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(&manifest, text.replace(&this, &other)).unwrap();
+    let refused = Prepared::open(&s.prepared, &s.hash).unwrap_err();
+    assert_eq!(
+        refused,
+        Unusable::Stale {
+            evaluator: other.clone()
+        }
+    );
+    // A file of that evaluator copied into a current form is refused on its own.
+    assert_eq!(prepare_now(&s), Outcome::Rebuilt(refused));
     let path = s.prepared.join("000001/000000.pbprep");
     let stamp = Stamp {
         content_hash: &s.hash,
-        evaluator: &evaluator_version(),
+        evaluator: &this,
         scene_id: 1,
         im_id: 0,
     };
-    let mut data = PreparedImage::open(&path, &stamp)
+    let data = PreparedImage::open(&path, &stamp)
         .unwrap()
         .decode()
         .unwrap();
-    let gt = data.gts.iter_mut().find(|g| !g.data.is_empty()).unwrap();
-    let px = gt.data.iter_mut().find(|d| **d > 0.0).unwrap();
-    *px += 0.25;
-    std::fs::write(&path, data.encode(&stamp)).unwrap();
-    let refused = Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap_err();
-    assert!(matches!(refused, Unusable::Disagrees(_)), "{refused}");
-    assert_eq!(prepare_now(&s), Outcome::Rebuilt(refused));
-    Prepared::open(&s.prepared, &s.dataset, &s.hash).unwrap();
+    let foreign = Stamp {
+        evaluator: &other,
+        ..stamp
+    };
+    std::fs::write(&path, data.encode(&foreign)).unwrap();
+    let error = PreparedImage::open(&path, &stamp).unwrap_err();
+    assert!(error.contains(&other), "{error}");
 }

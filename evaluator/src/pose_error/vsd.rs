@@ -7,6 +7,7 @@
 
 use crate::dataset::{DepthImage, DepthRows};
 use crate::math::Intrinsics;
+use crate::prepared::file::DepthRegion;
 use crate::render::DepthWindow;
 use crate::visibility::{VisibMode, visible};
 
@@ -54,12 +55,15 @@ impl PixelRays {
 
 /// The test image prepared for VSD: its depth, turned into distances only where a render
 /// needs them (an object covers a few thousand of the image's pixels, and a whole distance map
-/// cost more than all of an image's renders). It may hold only a band of rows
-/// ([`TestImage::from_rows`]): the rows the renders of its image cover.
+/// cost more than all of an image's renders). It may hold only a rectangle
+/// ([`TestImage::from_rows`], [`TestImage::from_region`]): one holding the renders of its image.
 pub struct TestImage {
     pub rays: PixelRays,
-    /// First row held.
+    /// First column and row held.
+    x0: u32,
     y0: u32,
+    /// Columns held.
+    cols: u32,
     depth: Vec<f32>,
 }
 
@@ -67,7 +71,9 @@ impl TestImage {
     pub fn new(depth: DepthImage, k: &Intrinsics) -> Self {
         TestImage {
             rays: PixelRays::new(k, depth.width, depth.height),
+            x0: 0,
             y0: 0,
+            cols: depth.width,
             depth: depth.data,
         }
     }
@@ -77,7 +83,21 @@ impl TestImage {
     pub fn from_rows(depth: DepthRows, k: &Intrinsics) -> Self {
         TestImage {
             rays: PixelRays::new(k, depth.width, depth.height),
+            x0: 0,
             y0: depth.y0,
+            cols: depth.width,
+            depth: depth.data,
+        }
+    }
+
+    /// A test image of which only `depth`'s region is known (and there only the tiles read):
+    /// every render compared with it must lie within the tiles read.
+    pub fn from_region(depth: DepthRegion, k: &Intrinsics) -> Self {
+        TestImage {
+            rays: PixelRays::new(k, depth.width, depth.height),
+            x0: depth.x0,
+            y0: depth.y0,
+            cols: depth.cols,
             depth: depth.data,
         }
     }
@@ -85,7 +105,7 @@ impl TestImage {
     /// Distance of the measured surface at pixel (x, y), 0 where depth is missing.
     #[inline]
     fn at(&self, x: u32, y: u32) -> f64 {
-        let d = self.depth[((y - self.y0) * self.rays.width + x) as usize];
+        let d = self.depth[((y - self.y0) * self.cols + (x - self.x0)) as usize];
         self.rays.distance(x, y, d)
     }
 }
@@ -113,9 +133,15 @@ impl GtView {
             let y = render.y0 + dy;
             for dx in 0..render.width {
                 let x = render.x0 + dx;
-                let d = test
-                    .rays
-                    .distance(x, y, render.data[(dy * render.width + dx) as usize]);
+                // A pixel without surface is at distance 0 (what `distance` gives for it too,
+                // square root and all); the window's corners around an object are often half
+                // of it.
+                let depth = render.data[(dy * render.width + dx) as usize];
+                let d = if depth == 0.0 {
+                    0.0
+                } else {
+                    test.rays.distance(x, y, depth)
+                };
                 let t = test.at(x, y);
                 visib.push(visible(params.visib_mode, t, d, delta));
                 dist.push(d);

@@ -138,8 +138,8 @@ pub enum PrepareError {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// The form just made does not open as current (its files disagree with a fresh
-    /// computation): it is not read.
+    /// The form just made does not open as current (another process replaced its manifest
+    /// meanwhile): it is not read.
     #[error("the form just prepared cannot be used: {0}")]
     Unusable(Unusable),
 }
@@ -157,7 +157,7 @@ pub fn prepare(
 ) -> Result<(Preparation, Prepared), PrepareError> {
     let _lock = lock(&lock_path(folder), tally, cancel)?;
     let preparation = prepared::prepare(dataset, content_hash, folder, tally, cancel)?;
-    let form = Prepared::open(folder, dataset, content_hash).map_err(PrepareError::Unusable)?;
+    let form = Prepared::open(folder, content_hash).map_err(PrepareError::Unusable)?;
     Ok((preparation, form))
 }
 
