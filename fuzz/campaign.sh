@@ -9,11 +9,16 @@
 #   seconds, inputs per second, corpus size, result). A target's total is the sum of its lines;
 #   a run asks libFuzzer for what is left of FUZZ_RUNS, and a target that has its total is
 #   skipped.
-# - fuzz/campaign/<target>.tar.gz (in git): the corpus the target has grown, packed after each
-#   run and unpacked into fuzz/campaign-corpus/<target> when that is missing, so a run on a new
-#   machine starts with the coverage the last one reached, not from the seeds.
+# - fuzz/campaign/<target>.tar.gz (in git): the corpus the target has grown, minimised (cargo
+#   fuzz cmin) and packed after each run, and unpacked into fuzz/campaign-corpus/<target> when
+#   that is missing, so a run on a new machine starts with the coverage the last one reached,
+#   not from the seeds.
 # - FUZZ_MAX_SECONDS: ends each target's run after that long (libFuzzer's -max_total_time); the
 #   inputs done are recorded and the rest is left for the next run.
+#
+# Never pause a run (SIGSTOP, a suspended laptop): libFuzzer's -timeout counts wall time, and the
+# input under way when it resumes is reported as a timeout of the pause's length. Stop it with
+# SIGINT (its inputs are counted) and run the campaign again later.
 #
 # A target that fails is recorded and the campaign goes on: the input is in
 # fuzz/artifacts/<target>/, to become a regression test once fixed. Each run's full log is
@@ -76,6 +81,8 @@ for target in "${targets[@]}"; do
   else
     result="FAILED ($(grep -m1 -o 'ERROR: libFuzzer: [a-z-]*\|panicked at [^ ]*' "$log" || echo "exit $status"))"
   fi
+  # Minimised (the fewest inputs that keep the coverage reached) before it is counted and packed.
+  "${fuzz_cargo[@]}" fuzz cmin --debug-assertions "$target" "$corpus" >>"$log" 2>&1
   files="$(find "$corpus" -type f | wc -l)"
   bytes="$(find "$corpus" -type f -printf '%s\n' | awk '{ n += $1 } END { print n + 0 }')"
   rate=$(( ${inputs:-0} / (seconds > 0 ? seconds : 1) ))
