@@ -49,7 +49,8 @@
 //! centre (most faces of a fine scan) is rejected before any set-up; the depth plane (with its
 //! division) is set up only once a sample is found inside; edge functions are stepped
 //! incrementally in 64-bit integers, and a wide triangle's rows visit only their runs of
-//! covered pixels (found by walking from the row above's); depth is rounded to 16 bits in float32 and read from the
+//! covered pixels (each edge's bound stepped exactly from row to row); a run's depths are
+//! computed without branches, several at once, rounded to 16 bits in float32 and read from the
 //! float's bits; [`screen_box`] bounds a render without drawing it. Faces
 //! are not culled even on closed meshes: with 16-bit depth a back face at a silhouette can be a
 //! depth step nearer than the front face and win the pixel, as it does in the toolkit.
@@ -250,7 +251,9 @@ impl Projection {
     /// The depth read back from a 16-bit buffer value, linearised as the toolkit does.
     #[inline]
     fn linear_depth(&self, z16: u32) -> f32 {
-        let z = z16 as f32 * (1.0f32 / DEPTH_MAX as f32);
+        // Through i32, whose conversion to float32 is one instruction for several lanes; exact,
+        // as a 16-bit value is.
+        let z = z16 as i32 as f32 * (1.0f32 / DEPTH_MAX as f32);
         self.mult / (z + self.addi)
     }
 }
@@ -429,15 +432,14 @@ impl Renderer {
             y0: win.top as u32,
             width: win.width as u32,
             height: (y1 - y0 + 1) as u32,
+            // Every pixel is converted and the cleared ones then zeroed, without a branch, so
+            // that the compiler does several divisions at once.
             data: self
                 .zbuf
                 .iter()
                 .map(|&z| {
-                    if z == DEPTH_MAX {
-                        0.0
-                    } else {
-                        proj.linear_depth(z)
-                    }
+                    let depth = proj.linear_depth(z);
+                    if z == DEPTH_MAX { 0.0 } else { depth }
                 })
                 .collect(),
         }
@@ -501,27 +503,28 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     // mesh whose bounding box holds a pixel centre still cover none, and the set-up (with its
     // division) cost more than their edge tests.
     let mut plane: Option<DepthPlane> = None;
-    let mut put = |x: i64, y: i64| {
+    let mut draw = |y: i64, first: i64, last: i64| {
         let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
-        if let Some(z16) = p.depth16(x as f32, y as f32) {
-            let row = (win.image_height - 1 - y - win.top) as usize * win.width;
-            let slot = &mut zbuf[row + (x - win.x0) as usize];
-            if z16 < *slot {
-                *slot = z16;
-            }
-        }
+        let row = (win.image_height - 1 - y - win.top) as usize * win.width;
+        let slots = &mut zbuf[row + (first - win.x0) as usize..=row + (last - win.x0) as usize];
+        p.draw_run(slots, first, y);
     };
     let (mut r0, mut r1, mut r2) = (e0, e1, e2);
-    if tx1 - tx0 < WALK_FROM {
+    if tx1 - tx0 < BOUND_FROM {
         for y in ty0..=ty1 {
+            // Covered pixels of a row are a run (the triangle is convex).
             let (mut f0, mut f1, mut f2) = (r0, r1, r2);
+            let mut run: Option<(i64, i64)> = None;
             for x in tx0..=tx1 {
                 if (f0 | f1 | f2) >= 0 {
-                    put(x, y);
+                    run = Some((run.map_or(x, |(first, _)| first), x));
                 }
                 f0 += sx0;
                 f1 += sx1;
                 f2 += sx2;
+            }
+            if let Some((first, last)) = run {
+                draw(y, first, last);
             }
             r0 += sy0;
             r1 += sy1;
@@ -529,84 +532,97 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         }
         return;
     }
-    // Where the last row's run of covered pixels began: the next row's begins near it.
-    let mut hint = tx0;
+    // Each edge bounds a row's run on one side; its bound moves by a constant step from row to
+    // row, kept exact in integers (a quotient and a remainder) without a division per row.
+    let mut bounds = [
+        EdgeBound::new(e0, sx0, sy0),
+        EdgeBound::new(e1, sx1, sy1),
+        EdgeBound::new(e2, sx2, sy2),
+    ];
+    let last = tx1 - tx0;
     for y in ty0..=ty1 {
-        if let Some((first, last)) = covered_run([r0, r1, r2], [sx0, sx1, sx2], tx0, tx1, hint) {
-            hint = first;
-            for x in first..=last {
-                put(x, y);
-            }
+        let (mut lo, mut hi) = (0, last);
+        for bound in &mut bounds {
+            bound.narrow(&mut lo, &mut hi);
+            bound.step();
         }
-        r0 += sy0;
-        r1 += sy1;
-        r2 += sy2;
+        if lo <= hi {
+            draw(y, tx0 + lo, tx0 + hi);
+        }
     }
 }
 
-/// Triangle bounding boxes this many pixels wide or wider find each row's covered pixels by
-/// walking ([`covered_run`]); narrower ones test every pixel of the box, which costs less than
-/// the walk's set-up on the pixel-sized faces of fine scans (walking every triangle, the
-/// paper-sized set's renders took about 1.3 times as long).
-const WALK_FROM: i64 = 16;
+/// Triangle bounding boxes this many pixels wide or wider find each row's covered pixels from
+/// their edges' bounds ([`EdgeBound`]); narrower ones test every pixel of the box, which costs
+/// less than the bounds' set-up (two divisions per edge) on the pixel-sized faces of fine scans.
+const BOUND_FROM: i64 = 16;
 
-/// The pixels `x` of `lo..=hi` in one row whose three edge functions `f[i] + (x - lo) s[i]` are
-/// all `>= 0` (inside the triangle), as the first and last: each function is linear in `x`, so
-/// they are a run. Found by walking from `hint` (the last row's first covered pixel) with the
-/// same integer tests as testing every pixel of the row, which spent half of a render stepping
-/// across the outside parts of the bounding boxes of large triangles.
-#[inline]
-fn covered_run(f: [i64; 3], s: [i64; 3], lo: i64, hi: i64, hint: i64) -> Option<(i64, i64)> {
-    let inside = |v: &[i64; 3]| (v[0] | v[1] | v[2]) >= 0;
-    let right = |v: &[i64; 3]| [v[0] + s[0], v[1] + s[1], v[2] + s[2]];
-    let left = |v: &[i64; 3]| [v[0] - s[0], v[1] - s[1], v[2] - s[2]];
-    let mut x = hint.clamp(lo, hi);
-    let k = x - lo;
-    let mut v = [f[0] + k * s[0], f[1] + k * s[1], f[2] + k * s[2]];
-    if !inside(&v) {
-        // An edge failing at x that grows with x can only be met to the right, one that
-        // shrinks to the left, a constant one nowhere in this row.
-        let (mut to_right, mut to_left) = (false, false);
-        for i in 0..3 {
-            if v[i] < 0 {
-                match s[i].signum() {
-                    1 => to_right = true,
-                    -1 => to_left = true,
-                    _ => return None,
+/// Where one edge function `E(k) = f + k s` (at column offset `k` of a row, `f` growing by `t`
+/// from row to row) is `>= 0`: from `-floor(f / s)` on when it grows along the row, up to
+/// `floor(f / -s)` when it shrinks, everywhere or nowhere when it is constant. The floor is
+/// kept as a quotient and a remainder in `[0, |s|)` and stepped with `t`'s, so every row's
+/// bound is exactly the one testing every pixel finds, in a few additions; stepping across the
+/// covered pixels instead was most of a large triangle's time.
+#[derive(Clone, Copy, Debug)]
+struct EdgeBound {
+    /// `s`'s sign: 1 a lower bound, -1 an upper one, 0 none (then `q` is `f` itself).
+    sign: i64,
+    /// `|s|`.
+    d: i64,
+    q: i64,
+    r: i64,
+    /// `t`, or its quotient and remainder by `d`.
+    tq: i64,
+    tr: i64,
+}
+
+impl EdgeBound {
+    fn new(f: i64, s: i64, t: i64) -> Self {
+        let d = s.abs();
+        if d == 0 {
+            return EdgeBound {
+                sign: 0,
+                d,
+                q: f,
+                r: 0,
+                tq: t,
+                tr: 0,
+            };
+        }
+        EdgeBound {
+            sign: s.signum(),
+            d,
+            q: f.div_euclid(d),
+            r: f.rem_euclid(d),
+            tq: t.div_euclid(d),
+            tr: t.rem_euclid(d),
+        }
+    }
+
+    /// Narrows the row's run `lo..=hi` (column offsets) to where this edge holds.
+    #[inline(always)]
+    fn narrow(&self, lo: &mut i64, hi: &mut i64) {
+        match self.sign {
+            1 => *lo = (*lo).max(-self.q),
+            -1 => *hi = (*hi).min(self.q),
+            _ => {
+                if self.q < 0 {
+                    *hi = -1;
                 }
             }
         }
-        if to_right == to_left {
-            return None;
-        }
-        loop {
-            if to_right {
-                if x == hi {
-                    return None;
-                }
-                (x, v) = (x + 1, right(&v));
-            } else {
-                if x == lo {
-                    return None;
-                }
-                (x, v) = (x - 1, left(&v));
-            }
-            if inside(&v) {
-                break;
-            }
+    }
+
+    /// Moves to the next row.
+    #[inline(always)]
+    fn step(&mut self) {
+        self.q += self.tq;
+        self.r += self.tr;
+        if self.d != 0 && self.r >= self.d {
+            self.r -= self.d;
+            self.q += 1;
         }
     }
-    let (mut first, mut before) = (x, left(&v));
-    while first > lo && inside(&before) {
-        first -= 1;
-        before = left(&before);
-    }
-    let (mut last, mut after) = (x, right(&v));
-    while last < hi && inside(&after) {
-        last += 1;
-        after = right(&after);
-    }
-    Some((first, last))
 }
 
 /// Window depth as a float32 plane through the unsnapped vertices, origin at the pixel centre
@@ -637,20 +653,40 @@ impl DepthPlane {
     }
 
     /// The 16-bit depth at window pixel (x, y), clamped to the depth range; `None` for NaN (a
-    /// float32 set-up of zero area), which draws nothing.
-    #[inline]
+    /// float32 set-up of zero area) or infinity, which draw nothing.
+    #[cfg(test)]
     fn depth16(&self, x: f32, y: f32) -> Option<u32> {
-        let z = (self.z0 + self.dzdx * x) + self.dzdy * y;
-        if !z.is_finite() {
-            return None;
-        }
+        let z16 = self.depth16_at(x, self.dzdy * y);
+        (z16 != DEPTH_MAX + 1).then_some(z16)
+    }
+
+    /// [`DepthPlane::depth16`] given `dzdy · y`, with `DEPTH_MAX + 1` for no depth: the plane
+    /// is `(z0 + dzdx x) + dzdy y` in this order, as llvmpipe evaluates it.
+    #[inline(always)]
+    fn depth16_at(&self, x: f32, dzdy_y: f32) -> u32 {
+        let z = (self.z0 + self.dzdx * x) + dzdy_y;
         // `v · 2^16` is exact in float32 and below 2^16, so adding 1.5 · 2^23 rounds it to
         // the nearest integer, ties to even, as the float64 path would, and leaves that
         // integer in the low bits of the sum (whose unit in the last place is 1): reading it
-        // from the bits spares the saturating float-to-integer conversion.
+        // from the bits spares the saturating float-to-integer conversion. Multiplying by
+        // 65535 rounds as multiplying by `65535 / 65536` and then by `2^16` (exact) does.
         const MAGIC: f32 = 12_582_912.0;
-        let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0) * 65536.0;
-        Some((v + MAGIC).to_bits() - MAGIC.to_bits())
+        let v = z.clamp(0.0, 1.0) * 65535.0;
+        let z16 = (v + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits());
+        if z.is_finite() { z16 } else { DEPTH_MAX + 1 }
+    }
+
+    /// Draws the run of window row `y` from column `first` into `slots` (one per pixel),
+    /// keeping the smaller depth (`GL_LESS`: a tie keeps the triangle drawn first). Without
+    /// branches, so that the compiler can do several pixels at once.
+    #[inline]
+    fn draw_run(&self, slots: &mut [u32], first: i64, y: i64) {
+        let dzdy_y = self.dzdy * y as f32;
+        let first = first as i32;
+        for (i, slot) in slots.iter_mut().enumerate() {
+            let z16 = self.depth16_at((first + i as i32) as f32, dzdy_y);
+            *slot = (*slot).min(z16);
+        }
     }
 }
 
@@ -659,11 +695,11 @@ mod tests {
     use super::*;
     use crate::math::{Mat3, Pt3, Vec3};
 
-    /// `covered_run` finds exactly the pixels a test of every pixel of the row finds, from any
-    /// hint: random edge functions of the magnitudes the rasteriser steps (fixed-point
-    /// coordinates times edge deltas), many with runs at a row's ends or empty.
+    /// An edge's bound on each row is exactly the columns a test of every pixel finds: random
+    /// edge functions of the magnitudes the rasteriser steps (fixed-point coordinates times edge
+    /// deltas), over rows where the run is whole, partial, at a row's ends or empty.
     #[test]
-    fn a_row_run_is_every_pixel_inside_and_no_other() {
+    fn an_edge_bounds_each_row_as_testing_every_pixel_does() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = |range: i64| {
             state ^= state << 13;
@@ -671,21 +707,23 @@ mod tests {
             state ^= state << 17;
             (state % (2 * range as u64 + 1)) as i64 - range
         };
-        for _ in 0..200_000 {
-            let lo = next(50);
-            let hi = lo + next(40).abs();
-            let s = [next(3) * 256 * next(8), next(3) * 256, next(600) * 256];
-            let f = [next(20_000), next(5_000), next(100_000)];
-            let hint = lo + next(60);
-            let inside: Vec<i64> = (lo..=hi)
-                .filter(|&x| (0..3).all(|i| f[i] + (x - lo) * s[i] >= 0))
-                .collect();
-            let expected = inside.first().map(|&a| (a, *inside.last().unwrap()));
-            assert_eq!(
-                covered_run(f, s, lo, hi, hint),
-                expected,
-                "f {f:?} s {s:?} lo {lo} hi {hi} hint {hint}"
-            );
+        for _ in 0..20_000 {
+            let width = next(40).abs();
+            let s =
+                [next(3) * 256 * next(8), next(3) * 256, next(600) * 256][(next(1) + 1) as usize];
+            let t = [next(3) * 256, next(600) * 256 * next(3), 0][(next(1) + 1) as usize];
+            let mut f = [next(20_000), next(5_000), next(100_000)][(next(1) + 1) as usize];
+            let mut bound = EdgeBound::new(f, s, t);
+            for row in 0..30 {
+                let inside: Vec<i64> = (0..=width).filter(|&k| f + k * s >= 0).collect();
+                let expected = inside.first().map(|&a| (a, *inside.last().unwrap()));
+                let (mut lo, mut hi) = (0, width);
+                bound.narrow(&mut lo, &mut hi);
+                let found = (lo <= hi).then_some((lo, hi));
+                assert_eq!(found, expected, "f {f} s {s} t {t} width {width} row {row}");
+                bound.step();
+                f += t;
+            }
         }
     }
 

@@ -102,6 +102,13 @@ impl TestImage {
         }
     }
 
+    /// The measured depth of `len` pixels of row `y` from column `x`.
+    #[inline]
+    fn row(&self, y: u32, x: u32, len: usize) -> &[f32] {
+        let start = ((y - self.y0) * self.cols + (x - self.x0)) as usize;
+        &self.depth[start..start + len]
+    }
+
     /// Distance of the measured surface at pixel (x, y), 0 where depth is missing.
     #[inline]
     fn at(&self, x: u32, y: u32) -> f64 {
@@ -115,7 +122,10 @@ pub struct GtView {
     window: DepthWindow,
     /// Distance map of the render over `window` (0 = no surface).
     dist: Vec<f64>,
-    /// Distance map of the test image over `window`.
+    /// Distance map of the test image over `window` where the render has a surface, 0
+    /// elsewhere: there only an estimate covering the pixel needs it, and [`vsd`] computes it
+    /// then (an object's window is often half empty, and most pixels of an image's windows are
+    /// compared with one estimate, if any).
     test_dist: Vec<f64>,
     visib: Vec<bool>,
 }
@@ -124,28 +134,37 @@ impl GtView {
     pub fn new(test: &TestImage, render: DepthWindow, params: &VsdParams) -> Self {
         let delta = params.delta as f32;
         let n = render.data.len();
-        let (mut dist, mut test_dist, mut visib) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-        );
-        for dy in 0..render.height {
-            let y = render.y0 + dy;
-            for dx in 0..render.width {
-                let x = render.x0 + dx;
+        let (mut dist, mut test_dist, mut visib) = (vec![0.0; n], vec![0.0; n], vec![false; n]);
+        let width = render.width as usize;
+        if width == 0 {
+            return GtView {
+                window: render,
+                dist,
+                test_dist,
+                visib,
+            };
+        }
+        let x0 = render.x0;
+        for (dy, depths) in render.data.chunks_exact(width).enumerate() {
+            let y = render.y0 + dy as u32;
+            let row = dy * width;
+            let range = row..row + width;
+            let measured = test.row(y, x0, width);
+            let rows = dist[range.clone()]
+                .iter_mut()
+                .zip(&mut test_dist[range.clone()])
+                .zip(&mut visib[range]);
+            for (k, ((&depth, ((d, t), v)), &m)) in
+                depths.iter().zip(rows).zip(measured).enumerate()
+            {
                 // A pixel without surface is at distance 0 (what `distance` gives for it too,
-                // square root and all); the window's corners around an object are often half
-                // of it.
-                let depth = render.data[(dy * render.width + dx) as usize];
-                let d = if depth == 0.0 {
-                    0.0
-                } else {
-                    test.rays.distance(x, y, depth)
-                };
-                let t = test.at(x, y);
-                visib.push(visible(params.visib_mode, t, d, delta));
-                dist.push(d);
-                test_dist.push(t);
+                // square root and all) and visible in no mode.
+                if depth != 0.0 {
+                    let x = x0 + k as u32;
+                    *d = test.rays.distance(x, y, depth);
+                    *t = test.rays.distance(x, y, m);
+                    *v = visible(params.visib_mode, *t, *d, delta);
+                }
             }
         }
         GtView {
@@ -155,16 +174,56 @@ impl GtView {
             visib,
         }
     }
+}
 
+/// The columns `x0..x1` of a window, or none when `y` is not one of its rows.
+#[inline]
+fn columns_at(w: &DepthWindow, y: u32) -> std::ops::Range<u32> {
+    if y >= w.y0 && y - w.y0 < w.height {
+        w.x0..w.x0 + w.width
+    } else {
+        0..0
+    }
+}
+
+/// VSD's pixel counts: the union and intersection of the visible surfaces, and per tau the
+/// intersection pixels whose distances differ by at least tau.
+struct Counts<'a> {
+    params: &'a VsdParams,
+    diameter: f64,
+    union: usize,
+    inter: usize,
+    far: Vec<usize>,
+}
+
+impl Counts<'_> {
     #[inline]
-    fn contains(&self, x: u32, y: u32) -> bool {
-        let w = &self.window;
-        x >= w.x0 && y >= w.y0 && x - w.x0 < w.width && y - w.y0 < w.height
+    fn pixel(&mut self, d_gt: f64, visib_gt: bool, d_est: f64, visib_est: bool) {
+        if !(visib_gt || visib_est) {
+            return;
+        }
+        self.union += 1;
+        if visib_gt && visib_est {
+            self.inter += 1;
+            let mut diff = (d_gt - d_est).abs();
+            if self.params.normalized_by_diameter {
+                diff /= self.diameter;
+            }
+            for (n, &tau) in self.far.iter_mut().zip(&self.params.taus) {
+                if diff >= tau {
+                    *n += 1;
+                }
+            }
+        }
     }
 }
 
 /// VSD of the estimate rendered as `est` against `gt`, one error per tau of `params` written to
 /// `out` (its length must equal the number of taus). An empty union gives 1 for every tau.
+///
+/// The pixels are visited row by row in three kinds of runs: the ground truth's alone (only its
+/// visible pixels count), both windows, and the estimate's alone; no pixel asks which window
+/// holds it.
 pub fn vsd(
     test: &TestImage,
     gt: &GtView,
@@ -175,65 +234,82 @@ pub fn vsd(
 ) {
     debug_assert_eq!(out.len(), params.taus.len());
     let delta = params.delta as f32;
-    let mut union = 0usize;
-    let mut inter = 0usize;
-    // Per tau, the intersection pixels whose distances differ by at least tau.
-    let mut far = vec![0usize; params.taus.len()];
-    let mut count_pixel = |d_gt: f64, visib_gt: bool, d_est: f64, visib_est: bool| {
-        if !(visib_gt || visib_est) {
-            return;
-        }
-        union += 1;
-        if visib_gt && visib_est {
-            inter += 1;
-            let mut diff = (d_gt - d_est).abs();
-            if params.normalized_by_diameter {
-                diff /= diameter;
-            }
-            for (n, &tau) in far.iter_mut().zip(&params.taus) {
-                if diff >= tau {
-                    *n += 1;
-                }
-            }
-        }
+    let mode = params.visib_mode;
+    let mut counts = Counts {
+        params,
+        diameter,
+        union: 0,
+        inter: 0,
+        far: vec![0; params.taus.len()],
     };
-
-    // Pixels of the ground-truth window, with the estimate where it covers them.
     let gw = &gt.window;
+
     for dy in 0..gw.height {
         let y = gw.y0 + dy;
-        for dx in 0..gw.width {
-            let x = gw.x0 + dx;
-            let i = (dy * gw.width + dx) as usize;
-            let (d_gt, visib_gt) = (gt.dist[i], gt.visib[i]);
-            let depth_est = est.at(x, y);
+        let row = (dy * gw.width) as usize;
+        let cols = columns_at(est, y);
+        // The estimate's columns within the ground truth's, as offsets in its row.
+        let from = cols.start.clamp(gw.x0, gw.x0 + gw.width) - gw.x0;
+        let to = cols.end.clamp(gw.x0, gw.x0 + gw.width) - gw.x0;
+        let (from, to) = (from.min(to) as usize, to as usize);
+        // Without an estimate, a pixel is in the union where the ground truth is visible.
+        let alone = gt.visib[row..row + from]
+            .iter()
+            .chain(&gt.visib[row + to..row + gw.width as usize]);
+        counts.union += alone.filter(|&&v| v).count();
+        if from == to {
+            continue;
+        }
+        let est_start = ((y - est.y0) * est.width + (gw.x0 + from as u32 - est.x0)) as usize;
+        let ests = &est.data[est_start..est_start + (to - from)];
+        let (i0, i1) = (row + from, row + to);
+        let gts = gw.data[i0..i1]
+            .iter()
+            .zip(&gt.dist[i0..i1])
+            .zip(&gt.visib[i0..i1])
+            .zip(&gt.test_dist[i0..i1]);
+        for (k, (&depth_est, (((&depth_gt, &d_gt), &visib_gt), &t))) in
+            ests.iter().zip(gts).enumerate()
+        {
             if depth_est <= 0.0 {
-                count_pixel(d_gt, visib_gt, 0.0, false);
+                counts.pixel(d_gt, visib_gt, 0.0, false);
                 continue;
             }
+            let x = gw.x0 + (from + k) as u32;
             let d_est = test.rays.distance(x, y, depth_est);
-            let visib_est = visible(params.visib_mode, gt.test_dist[i], d_est, delta) || visib_gt;
-            count_pixel(d_gt, visib_gt, d_est, visib_est);
+            let d_test = if depth_gt == 0.0 { test.at(x, y) } else { t };
+            let visib_est = visible(mode, d_test, d_est, delta) || visib_gt;
+            counts.pixel(d_gt, visib_gt, d_est, visib_est);
         }
     }
     // Pixels the estimate covers outside the ground-truth window.
     for dy in 0..est.height {
         let y = est.y0 + dy;
-        for dx in 0..est.width {
-            let x = est.x0 + dx;
-            if gt.contains(x, y) {
-                continue;
-            }
-            let depth_est = est.data[(dy * est.width + dx) as usize];
+        let row = (dy * est.width) as usize;
+        let gt_cols = columns_at(gw, y);
+        let (left, right) = if gt_cols.is_empty() {
+            (est.x0 + est.width, est.x0 + est.width)
+        } else {
+            let end = est.x0 + est.width;
+            (
+                gt_cols.start.clamp(est.x0, end),
+                gt_cols.end.clamp(est.x0, end),
+            )
+        };
+        for x in (est.x0..left).chain(right..est.x0 + est.width) {
+            let depth_est = est.data[row + (x - est.x0) as usize];
             if depth_est <= 0.0 {
                 continue;
             }
             let d_est = test.rays.distance(x, y, depth_est);
-            let visib_est = visible(params.visib_mode, test.at(x, y), d_est, delta);
-            count_pixel(0.0, false, d_est, visib_est);
+            let visib_est = visible(mode, test.at(x, y), d_est, delta);
+            counts.pixel(0.0, false, d_est, visib_est);
         }
     }
 
+    let Counts {
+        union, inter, far, ..
+    } = counts;
     if union == 0 {
         out.fill(1.0);
         return;
