@@ -503,28 +503,21 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     // mesh whose bounding box holds a pixel centre still cover none, and the set-up (with its
     // division) cost more than their edge tests.
     let mut plane: Option<DepthPlane> = None;
-    let mut draw = |y: i64, first: i64, last: i64| {
-        let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
-        let row = (win.image_height - 1 - y - win.top) as usize * win.width;
-        let slots = &mut zbuf[row + (first - win.x0) as usize..=row + (last - win.x0) as usize];
-        p.draw_run(slots, first, y);
-    };
-    let (mut r0, mut r1, mut r2) = (e0, e1, e2);
+    let row_start = |y: i64| (win.image_height - 1 - y - win.top) as usize * win.width;
     if tx1 - tx0 < BOUND_FROM {
+        // Pixel by pixel: the triangles of fine scans cover a pixel or two per row.
+        let (mut r0, mut r1, mut r2) = (e0, e1, e2);
         for y in ty0..=ty1 {
-            // Covered pixels of a row are a run (the triangle is convex).
+            let row = &mut zbuf[row_start(y) + (tx0 - win.x0) as usize..];
             let (mut f0, mut f1, mut f2) = (r0, r1, r2);
-            let mut run: Option<(i64, i64)> = None;
-            for x in tx0..=tx1 {
+            for (slot, x) in row.iter_mut().zip(tx0..=tx1) {
                 if (f0 | f1 | f2) >= 0 {
-                    run = Some((run.map_or(x, |(first, _)| first), x));
+                    let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
+                    *slot = (*slot).min(p.depth16_at(x as f32, p.dzdy * y as f32));
                 }
                 f0 += sx0;
                 f1 += sx1;
                 f2 += sx2;
-            }
-            if let Some((first, last)) = run {
-                draw(y, first, last);
             }
             r0 += sy0;
             r1 += sy1;
@@ -547,7 +540,13 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
             bound.step();
         }
         if lo <= hi {
-            draw(y, tx0 + lo, tx0 + hi);
+            let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
+            let row = row_start(y) + (tx0 - win.x0) as usize;
+            p.draw_run(
+                &mut zbuf[row + lo as usize..=row + hi as usize],
+                tx0 + lo,
+                y,
+            );
         }
     }
 }
