@@ -41,10 +41,11 @@ impl std::str::FromStr for VisibMode {
 /// bop_toolkit, which decides pixels lying exactly `delta` behind the surface.
 #[inline]
 pub fn visible(mode: VisibMode, d_test: f64, d_model: f64, delta: f32) -> bool {
+    // `&` and `|`, not `&&` and `||`: no branch, so that loops over pixels run several at once.
     let behind = d_model as f32 - d_test as f32;
     match mode {
-        VisibMode::Bop18 => d_test > 0.0 && d_model > 0.0 && behind <= delta,
-        VisibMode::Bop19 => d_model > 0.0 && (behind <= delta || d_test == 0.0),
+        VisibMode::Bop18 => (d_test > 0.0) & (d_model > 0.0) & (behind <= delta),
+        VisibMode::Bop19 => (d_model > 0.0) & ((behind <= delta) | (d_test == 0.0)),
     }
 }
 

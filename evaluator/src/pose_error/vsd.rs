@@ -46,11 +46,28 @@ impl PixelRays {
     /// Distance from the camera centre of the surface point seen at pixel (x, y) at `depth` mm.
     #[inline]
     pub fn distance(&self, x: u32, y: u32, depth: f32) -> f64 {
-        let d = depth as f64;
-        let a = self.xs[x as usize] * d;
-        let b = self.ys[y as usize] * d;
-        (a * a + b * b + d * d).sqrt()
+        ray_distance(self.xs[x as usize], self.ys[y as usize], depth)
     }
+
+    /// The distances of `depths`, pixels of row `y` from column `x`, into `out`: a loop without
+    /// branches, which the compiler runs on several pixels at once.
+    #[inline]
+    fn distances(&self, x: u32, y: u32, depths: &[f32], out: &mut [f64]) {
+        let xs = &self.xs[x as usize..x as usize + depths.len()];
+        let y = self.ys[y as usize];
+        for ((o, &xr), &depth) in out.iter_mut().zip(xs).zip(depths) {
+            *o = ray_distance(xr, y, depth);
+        }
+    }
+}
+
+/// `depth` (0 = none, giving 0) turned into distance along the ray `(x, y, 1)`.
+#[inline(always)]
+fn ray_distance(x: f64, y: f64, depth: f32) -> f64 {
+    let d = depth as f64;
+    let a = x * d;
+    let b = y * d;
+    (a * a + b * b + d * d).sqrt()
 }
 
 /// The test image prepared for VSD: its depth, turned into distances only where a render
@@ -108,13 +125,6 @@ impl TestImage {
         let start = ((y - self.y0) * self.cols + (x - self.x0)) as usize;
         &self.depth[start..start + len]
     }
-
-    /// Distance of the measured surface at pixel (x, y), 0 where depth is missing.
-    #[inline]
-    fn at(&self, x: u32, y: u32) -> f64 {
-        let d = self.depth[((y - self.y0) * self.cols + (x - self.x0)) as usize];
-        self.rays.distance(x, y, d)
-    }
 }
 
 /// A ground-truth instance rendered once and compared with every estimate of its object.
@@ -122,48 +132,29 @@ pub struct GtView {
     window: DepthWindow,
     /// Distance map of the render over `window` (0 = no surface).
     dist: Vec<f64>,
-    /// Distance map of the test image over `window` where the render has a surface, 0
-    /// elsewhere: there only an estimate covering the pixel needs it, and [`vsd`] computes it
-    /// then (an object's window is often half empty, and most pixels of an image's windows are
-    /// compared with one estimate, if any).
+    /// Distance map of the test image over `window`.
     test_dist: Vec<f64>,
     visib: Vec<bool>,
 }
 
 impl GtView {
+    /// Row by row without branches (the distances of pixels without surface are computed too,
+    /// and are 0): a loop the compiler runs on several pixels at once, faster than skipping them.
     pub fn new(test: &TestImage, render: DepthWindow, params: &VsdParams) -> Self {
         let delta = params.delta as f32;
         let n = render.data.len();
         let (mut dist, mut test_dist, mut visib) = (vec![0.0; n], vec![0.0; n], vec![false; n]);
         let width = render.width as usize;
-        if width == 0 {
-            return GtView {
-                window: render,
-                dist,
-                test_dist,
-                visib,
-            };
-        }
-        let x0 = render.x0;
-        for (dy, depths) in render.data.chunks_exact(width).enumerate() {
-            let y = render.y0 + dy as u32;
-            let row = dy * width;
-            let range = row..row + width;
-            let measured = test.row(y, x0, width);
-            let rows = dist[range.clone()]
-                .iter_mut()
-                .zip(&mut test_dist[range.clone()])
-                .zip(&mut visib[range]);
-            for (k, ((&depth, ((d, t), v)), &m)) in
-                depths.iter().zip(rows).zip(measured).enumerate()
-            {
-                // A pixel without surface is at distance 0 (what `distance` gives for it too,
-                // square root and all) and visible in no mode.
-                if depth != 0.0 {
-                    let x = x0 + k as u32;
-                    *d = test.rays.distance(x, y, depth);
-                    *t = test.rays.distance(x, y, m);
-                    *v = visible(params.visib_mode, *t, *d, delta);
+        if width > 0 {
+            for (dy, depths) in render.data.chunks_exact(width).enumerate() {
+                let y = render.y0 + dy as u32;
+                let row = dy * width..(dy + 1) * width;
+                let (d, t) = (&mut dist[row.clone()], &mut test_dist[row.clone()]);
+                test.rays.distances(render.x0, y, depths, d);
+                test.rays
+                    .distances(render.x0, y, test.row(y, render.x0, width), t);
+                for ((v, &d), &t) in visib[row].iter_mut().zip(&*d).zip(&*t) {
+                    *v = visible(params.visib_mode, t, d, delta);
                 }
             }
         }
@@ -186,44 +177,14 @@ fn columns_at(w: &DepthWindow, y: u32) -> std::ops::Range<u32> {
     }
 }
 
-/// VSD's pixel counts: the union and intersection of the visible surfaces, and per tau the
-/// intersection pixels whose distances differ by at least tau.
-struct Counts<'a> {
-    params: &'a VsdParams,
-    diameter: f64,
-    union: usize,
-    inter: usize,
-    far: Vec<usize>,
-}
-
-impl Counts<'_> {
-    #[inline]
-    fn pixel(&mut self, d_gt: f64, visib_gt: bool, d_est: f64, visib_est: bool) {
-        if !(visib_gt || visib_est) {
-            return;
-        }
-        self.union += 1;
-        if visib_gt && visib_est {
-            self.inter += 1;
-            let mut diff = (d_gt - d_est).abs();
-            if self.params.normalized_by_diameter {
-                diff /= self.diameter;
-            }
-            for (n, &tau) in self.far.iter_mut().zip(&self.params.taus) {
-                if diff >= tau {
-                    *n += 1;
-                }
-            }
-        }
-    }
-}
-
 /// VSD of the estimate rendered as `est` against `gt`, one error per tau of `params` written to
 /// `out` (its length must equal the number of taus). An empty union gives 1 for every tau.
 ///
 /// The pixels are visited row by row in three kinds of runs: the ground truth's alone (only its
 /// visible pixels count), both windows, and the estimate's alone; no pixel asks which window
-/// holds it.
+/// holds it. Within a run each pixel is computed without branches (the compiler does several
+/// at once): its membership of the union and the intersection, and for the intersection the
+/// discrepancy, kept per row and compared with each tau after.
 pub fn vsd(
     test: &TestImage,
     gt: &GtView,
@@ -235,13 +196,13 @@ pub fn vsd(
     debug_assert_eq!(out.len(), params.taus.len());
     let delta = params.delta as f32;
     let mode = params.visib_mode;
-    let mut counts = Counts {
-        params,
-        diameter,
-        union: 0,
-        inter: 0,
-        far: vec![0; params.taus.len()],
-    };
+    let (mut union, mut inter) = (0usize, 0usize);
+    // Per tau, the intersection pixels whose distances differ by at least tau.
+    let mut far = vec![0usize; params.taus.len()];
+    // Per pixel of a run, its distance at the estimate, then its discrepancy (-inf outside the
+    // intersection, below every tau).
+    let mut d_est = Vec::new();
+    let mut diffs = Vec::new();
     let gw = &gt.window;
 
     for dy in 0..gw.height {
@@ -256,60 +217,75 @@ pub fn vsd(
         let alone = gt.visib[row..row + from]
             .iter()
             .chain(&gt.visib[row + to..row + gw.width as usize]);
-        counts.union += alone.filter(|&&v| v).count();
+        union += alone.filter(|&&v| v).count();
         if from == to {
             continue;
         }
-        let est_start = ((y - est.y0) * est.width + (gw.x0 + from as u32 - est.x0)) as usize;
-        let ests = &est.data[est_start..est_start + (to - from)];
+        let x = gw.x0 + from as u32;
+        let est_start = ((y - est.y0) * est.width + (x - est.x0)) as usize;
+        let depths = &est.data[est_start..est_start + (to - from)];
+        d_est.resize(depths.len(), 0.0);
+        diffs.resize(depths.len(), 0.0);
+        test.rays.distances(x, y, depths, &mut d_est);
         let (i0, i1) = (row + from, row + to);
-        let gts = gw.data[i0..i1]
+        let gts = gt.dist[i0..i1]
             .iter()
-            .zip(&gt.dist[i0..i1])
             .zip(&gt.visib[i0..i1])
             .zip(&gt.test_dist[i0..i1]);
-        for (k, (&depth_est, (((&depth_gt, &d_gt), &visib_gt), &t))) in
-            ests.iter().zip(gts).enumerate()
+        for ((diff, (&depth, &d_e)), ((&d_gt, &visib_gt), &d_test)) in
+            diffs.iter_mut().zip(depths.iter().zip(&d_est)).zip(gts)
         {
-            if depth_est <= 0.0 {
-                counts.pixel(d_gt, visib_gt, 0.0, false);
-                continue;
+            // Where the estimate has no surface it is not visible, and bop19 counts it visible
+            // wherever the ground truth is.
+            let visib_est = (depth > 0.0) & (visible(mode, d_test, d_e, delta) | visib_gt);
+            union += usize::from(visib_gt | visib_est);
+            let both = visib_gt & visib_est;
+            inter += usize::from(both);
+            let mut d = (d_gt - d_e).abs();
+            if params.normalized_by_diameter {
+                d /= diameter;
             }
-            let x = gw.x0 + (from + k) as u32;
-            let d_est = test.rays.distance(x, y, depth_est);
-            let d_test = if depth_gt == 0.0 { test.at(x, y) } else { t };
-            let visib_est = visible(mode, d_test, d_est, delta) || visib_gt;
-            counts.pixel(d_gt, visib_gt, d_est, visib_est);
+            *diff = if both { d } else { f64::NEG_INFINITY };
+        }
+        for (n, &tau) in far.iter_mut().zip(&params.taus) {
+            *n += diffs.iter().filter(|&&d| d >= tau).count();
         }
     }
-    // Pixels the estimate covers outside the ground-truth window.
+    // Pixels the estimate covers outside the ground-truth window: in the union where visible.
+    let mut d_test = Vec::new();
     for dy in 0..est.height {
         let y = est.y0 + dy;
         let row = (dy * est.width) as usize;
         let gt_cols = columns_at(gw, y);
+        let end = est.x0 + est.width;
         let (left, right) = if gt_cols.is_empty() {
-            (est.x0 + est.width, est.x0 + est.width)
+            (end, end)
         } else {
-            let end = est.x0 + est.width;
             (
                 gt_cols.start.clamp(est.x0, end),
                 gt_cols.end.clamp(est.x0, end),
             )
         };
-        for x in (est.x0..left).chain(right..est.x0 + est.width) {
-            let depth_est = est.data[row + (x - est.x0) as usize];
-            if depth_est <= 0.0 {
+        for (x0, x1) in [(est.x0, left), (right, end)] {
+            if x0 == x1 {
                 continue;
             }
-            let d_est = test.rays.distance(x, y, depth_est);
-            let visib_est = visible(mode, test.at(x, y), d_est, delta);
-            counts.pixel(0.0, false, d_est, visib_est);
+            let len = (x1 - x0) as usize;
+            let start = row + (x0 - est.x0) as usize;
+            let depths = &est.data[start..start + len];
+            d_est.resize(len, 0.0);
+            d_test.resize(len, 0.0);
+            test.rays.distances(x0, y, depths, &mut d_est);
+            test.rays
+                .distances(x0, y, test.row(y, x0, len), &mut d_test);
+            union += d_est
+                .iter()
+                .zip(&d_test)
+                .filter(|&(&d_e, &d_t)| visible(mode, d_t, d_e, delta))
+                .count();
         }
     }
 
-    let Counts {
-        union, inter, far, ..
-    } = counts;
     if union == 0 {
         out.fill(1.0);
         return;
