@@ -44,6 +44,9 @@ pub fn run(args: PrepareArgs) -> Result<()> {
         .unwrap_or_else(|| prepared::default_dir(&dataset));
     let pool = worker_pool(args.threads)?;
     let bar = ImagesBar::new();
+    // The folder first, so that the first run leaves the dataset's file digests there too:
+    // without them the first `eval` after it would read the whole dataset again to hash it.
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let done = pool.install(|| -> Result<_> {
         // The digests cached in the folder by earlier runs spare reading unchanged files.
         let hash = content_hash_cached(&dataset, &out).map_err(anyhow::Error::msg)?;
