@@ -35,7 +35,9 @@ fn eval_reads_a_prepared_dataset_and_gives_the_same_report() {
     assert!(stdout.ends_with(": prepared\n"), "{stdout}");
     assert!(dataset.join("poseboard_prepared/manifest.json").is_file());
     // The first preparation keeps the file digests for `eval`.
-    let cache = dataset.join("poseboard_prepared").join(evaluator::content_hash::CACHE_FILE);
+    let cache = dataset
+        .join("poseboard_prepared")
+        .join(evaluator::content_hash::CACHE_FILE);
     assert!(cache.is_file());
 
     let (output, prepared) = eval_report(&dataset, &results, &["--protocol", "bop19"]);
