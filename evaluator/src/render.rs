@@ -143,6 +143,8 @@ const FIXED_ONE: i64 = 1 << SUBPIXEL_BITS;
 const GUARD_BAND: f32 = (1u32 << (21 + SUBPIXEL_BITS)) as f32;
 /// The largest 16-bit depth value, the cleared buffer; it never passes `GL_LESS`.
 const DEPTH_MAX: u32 = (1 << 16) - 1;
+/// A depth no buffer value is above, so that keeping the smaller draws nothing.
+const NO_DEPTH: u32 = DEPTH_MAX + 1;
 
 /// Reusable buffers, so rendering thousands of poses allocates once per thread.
 #[derive(Default)]
@@ -651,16 +653,9 @@ impl DepthPlane {
         }
     }
 
-    /// The 16-bit depth at window pixel (x, y), clamped to the depth range; `None` for NaN (a
-    /// float32 set-up of zero area) or infinity, which draw nothing.
-    #[cfg(test)]
-    fn depth16(&self, x: f32, y: f32) -> Option<u32> {
-        let z16 = self.depth16_at(x, self.dzdy * y);
-        (z16 != DEPTH_MAX + 1).then_some(z16)
-    }
-
-    /// [`DepthPlane::depth16`] given `dzdy · y`, with `DEPTH_MAX + 1` for no depth: the plane
-    /// is `(z0 + dzdx x) + dzdy y` in this order, as llvmpipe evaluates it.
+    /// The 16-bit depth at window pixel (x, y) given `dzdy · y`, clamped to the depth range;
+    /// [`NO_DEPTH`] for NaN (a float32 set-up of zero area) or infinity, which draw nothing. The
+    /// plane is `(z0 + dzdx x) + dzdy y` in this order, as llvmpipe evaluates it.
     #[inline(always)]
     fn depth16_at(&self, x: f32, dzdy_y: f32) -> u32 {
         let z = (self.z0 + self.dzdx * x) + dzdy_y;
@@ -672,7 +667,7 @@ impl DepthPlane {
         const MAGIC: f32 = 12_582_912.0;
         let v = z.clamp(0.0, 1.0) * 65535.0;
         let z16 = (v + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits());
-        if z.is_finite() { z16 } else { DEPTH_MAX + 1 }
+        if z.is_finite() { z16 } else { NO_DEPTH }
     }
 
     /// Draws the run of window row `y` from column `first` into `slots` (one per pixel),
@@ -858,7 +853,7 @@ mod tests {
                 let plane = DepthPlane { z0: z, dzdx: 0.0, dzdy: 0.0 };
                 let v = z.clamp(0.0, 1.0) * (65535.0f32 / 65536.0);
                 let expected = round_even(f64::from(v) * 65536.0) as u32;
-                proptest::prop_assert_eq!(plane.depth16(0.0, 0.0), Some(expected));
+                proptest::prop_assert_eq!(plane.depth16_at(0.0, 0.0), expected);
             }
         }
     }
@@ -870,7 +865,7 @@ mod tests {
             dzdx: 0.0,
             dzdy: 0.0,
         };
-        assert_eq!(plane.depth16(3.0, 4.0), None);
+        assert_eq!(plane.depth16_at(3.0, 4.0), NO_DEPTH);
     }
 
     #[test]

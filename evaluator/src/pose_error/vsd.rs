@@ -212,7 +212,7 @@ pub fn vsd(
         // The estimate's columns within the ground truth's, as offsets in its row.
         let from = cols.start.clamp(gw.x0, gw.x0 + gw.width) - gw.x0;
         let to = cols.end.clamp(gw.x0, gw.x0 + gw.width) - gw.x0;
-        let (from, to) = (from.min(to) as usize, to as usize);
+        let (from, to) = (from as usize, to as usize);
         // Without an estimate, a pixel is in the union where the ground truth is visible.
         let alone = gt.visib[row..row + from]
             .iter()
@@ -256,16 +256,14 @@ pub fn vsd(
     for dy in 0..est.height {
         let y = est.y0 + dy;
         let row = (dy * est.width) as usize;
+        // The estimate's columns left and right of the ground truth's (all of them in a row
+        // the ground truth does not reach, whose empty range clamps to the row's start).
         let gt_cols = columns_at(gw, y);
         let end = est.x0 + est.width;
-        let (left, right) = if gt_cols.is_empty() {
-            (end, end)
-        } else {
-            (
-                gt_cols.start.clamp(est.x0, end),
-                gt_cols.end.clamp(est.x0, end),
-            )
-        };
+        let (left, right) = (
+            gt_cols.start.clamp(est.x0, end),
+            gt_cols.end.clamp(est.x0, end),
+        );
         for (x0, x1) in [(est.x0, left), (right, end)] {
             if x0 == x1 {
                 continue;
