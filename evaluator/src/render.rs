@@ -46,12 +46,14 @@
 //!
 //! Speed comes from work that cannot change a pixel: only the screen box of the object is
 //! rasterised, into a [`DepthWindow`]; a triangle whose fixed-point bounding box holds no pixel
-//! centre (most faces of a fine scan) is rejected before any set-up; the depth plane (with its
-//! division) is set up only once a sample is found inside; edge functions are stepped
-//! incrementally in 64-bit integers, and a wide triangle's rows visit only their runs of
-//! covered pixels (each edge's bound stepped exactly from row to row); a run's depths are
-//! computed without branches, several at once, rounded to 16 bits in float32 and read from the
-//! float's bits; [`screen_box`] bounds a render without drawing it. Faces
+//! centre (most faces of a fine scan) is rejected before any set-up; a narrow triangle's box
+//! is tested row by row in fixed-width lanes of 32-bit edge values, without a branch per pixel
+//! (on coarse meshes, whose triangles cover a few pixels each, the branches of a pixel-by-pixel
+//! test were mispredicted and were most of a render); a wide triangle's rows visit only their
+//! runs of covered pixels (each edge's bound stepped exactly from row to row in 64-bit
+//! integers); depths are computed without branches, several at once, rounded to 16 bits in
+//! float32 and read from the float's bits; the whole draw is built also for AVX2 and chosen at
+//! run time; [`screen_box`] bounds a render without drawing it. Faces
 //! are not culled even on closed meshes: with 16-bit depth a back face at a silhouette can be a
 //! depth step nearer than the front face and win the pixel, as it does in the toolkit.
 
@@ -220,7 +222,7 @@ impl Projection {
 
     /// The vertex stage: clip coordinates in float32, then `1/w` and the viewport transform
     /// (y up), then the snap to 1/256 pixel relative to the pixel centre.
-    #[inline]
+    #[inline(always)]
     fn vertex(&self, v: &[f32; 3], half_w: f32, half_h: f32) -> WinVertex {
         let m = &self.mvp;
         let clip = |r: &[f32; 4]| ((r[0] * v[0] + r[1] * v[1]) + r[2] * v[2]) + r[3];
@@ -251,7 +253,7 @@ impl Projection {
     }
 
     /// The depth read back from a 16-bit buffer value, linearised as the toolkit does.
-    #[inline]
+    #[inline(always)]
     fn linear_depth(&self, z16: u32) -> f32 {
         // Through i32, whose conversion to float32 is one instruction for several lanes; exact,
         // as a 16-bit value is.
@@ -390,61 +392,78 @@ impl Renderer {
         let Some(proj) = Projection::new(pose, &model.corners, k, width, height) else {
             return DepthWindow::empty();
         };
-        let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
-        self.verts.clear();
-        let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
-        for v in &model.vertices {
-            let wv = proj.vertex(v, half_w, half_h);
-            if wv.usable {
-                lo_x = lo_x.min(wv.fx);
-                hi_x = hi_x.max(wv.fx);
-                lo_y = lo_y.min(wv.fy);
-                hi_y = hi_y.max(wv.fy);
-            }
-            self.verts.push(wv);
-        }
-        // Window coordinates (y up) of the pixels whose centres the vertices span.
-        let x0 = ceil_px(lo_x).max(0);
-        let x1 = floor_px(hi_x).min(i64::from(width) - 1);
-        let y0 = ceil_px(lo_y).max(0);
-        let y1 = floor_px(hi_y).min(i64::from(height) - 1);
-        if x0 > x1 || y0 > y1 {
-            return DepthWindow::empty();
-        }
-        let win = Window {
-            x0,
-            x1,
-            y0,
-            y1,
-            top: i64::from(height) - 1 - y1,
-            width: (x1 - x0 + 1) as usize,
-            image_height: i64::from(height),
-        };
-        self.zbuf.clear();
-        self.zbuf
-            .resize(win.width * (y1 - y0 + 1) as usize, DEPTH_MAX);
+        draw(&proj, model, width, height, &mut self.verts, &mut self.zbuf)
+    }
+}
 
-        for tri in &model.triangles {
-            let [a, b, c] = tri.map(|i| self.verts[i as usize]);
-            rasterise(&mut self.zbuf, &win, a, b, c);
+/// The vertex stage, rasterisation and read-back of [`Renderer::render_model`], compiled also
+/// for AVX2 and chosen when the processor has it (runtime detection, no unsafe code here):
+/// the loops that run several pixels at once then run twice as many. Every operation is the
+/// same IEEE operation in either build (Rust never fuses a multiply and an add on its own), so
+/// the depths are the same to the bit.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn draw(
+    proj: &Projection,
+    model: &Model,
+    width: u32,
+    height: u32,
+    verts: &mut Vec<WinVertex>,
+    zbuf: &mut Vec<u32>,
+) -> DepthWindow {
+    let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
+    verts.clear();
+    let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
+    for v in &model.vertices {
+        let wv = proj.vertex(v, half_w, half_h);
+        if wv.usable {
+            lo_x = lo_x.min(wv.fx);
+            hi_x = hi_x.max(wv.fx);
+            lo_y = lo_y.min(wv.fy);
+            hi_y = hi_y.max(wv.fy);
         }
+        verts.push(wv);
+    }
+    // Window coordinates (y up) of the pixels whose centres the vertices span.
+    let x0 = ceil_px(lo_x).max(0);
+    let x1 = floor_px(hi_x).min(i64::from(width) - 1);
+    let y0 = ceil_px(lo_y).max(0);
+    let y1 = floor_px(hi_y).min(i64::from(height) - 1);
+    if x0 > x1 || y0 > y1 {
+        return DepthWindow::empty();
+    }
+    let win = Window {
+        x0,
+        x1,
+        y0,
+        y1,
+        top: i64::from(height) - 1 - y1,
+        width: (x1 - x0 + 1) as usize,
+        image_height: i64::from(height),
+    };
+    let pixels = win.width * (y1 - y0 + 1) as usize;
+    zbuf.clear();
+    // The lanes of the last row's narrow triangles reach past the window (see `draw_lanes`).
+    zbuf.resize(pixels + LANES_MAX, DEPTH_MAX);
 
-        DepthWindow {
-            x0: x0 as u32,
-            y0: win.top as u32,
-            width: win.width as u32,
-            height: (y1 - y0 + 1) as u32,
-            // Every pixel is converted and the cleared ones then zeroed, without a branch, so
-            // that the compiler does several divisions at once.
-            data: self
-                .zbuf
-                .iter()
-                .map(|&z| {
-                    let depth = proj.linear_depth(z);
-                    if z == DEPTH_MAX { 0.0 } else { depth }
-                })
-                .collect(),
-        }
+    for tri in &model.triangles {
+        let [a, b, c] = tri.map(|i| verts[i as usize]);
+        rasterise::<BOUND_FROM>(zbuf, &win, a, b, c);
+    }
+
+    DepthWindow {
+        x0: x0 as u32,
+        y0: win.top as u32,
+        width: win.width as u32,
+        height: (y1 - y0 + 1) as u32,
+        // Every pixel is converted and the cleared ones then zeroed, without a branch, so
+        // that the compiler does several divisions at once.
+        data: zbuf[..pixels]
+            .iter()
+            .map(|&z| {
+                let depth = proj.linear_depth(z);
+                if z == DEPTH_MAX { 0.0 } else { depth }
+            })
+            .collect(),
     }
 }
 
@@ -461,9 +480,27 @@ struct Window {
     image_height: i64,
 }
 
-/// Rasterises one triangle into the 16-bit depth buffer `zbuf` over `win`, as llvmpipe does.
-#[inline]
-fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex, c: WinVertex) {
+impl Window {
+    /// Where window row `y` (y up) starts in the depth buffer.
+    #[inline(always)]
+    fn row_start(&self, y: i64) -> usize {
+        (self.image_height - 1 - y - self.top) as usize * self.width
+    }
+}
+
+/// Rasterises one triangle into the 16-bit depth buffer `zbuf` over `win`, as llvmpipe does:
+/// boxes narrower than `LANES_BELOW` pixels in lanes ([`draw_lanes`]), the others by their
+/// rows' runs ([`EdgeBound`]); [`draw`] passes [`BOUND_FROM`], and a test draws with each
+/// path alone to compare them. It and the helpers below are inlined into [`draw`], so that
+/// they are built for its targets.
+#[inline(always)]
+fn rasterise<const LANES_BELOW: i64>(
+    zbuf: &mut [u32],
+    win: &Window,
+    mut a: WinVertex,
+    mut b: WinVertex,
+    c: WinVertex,
+) {
     if !(a.usable && b.usable && c.usable) {
         return;
     }
@@ -497,36 +534,36 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         let at = dcdx * (p.fx - tx0 * FIXED_ONE) - dcdy * (p.fy - ty0 * FIXED_ONE) + bias - 1;
         (at, -dcdx * FIXED_ONE, dcdy * FIXED_ONE)
     };
-    let (e0, sx0, sy0) = edge(&a, &b);
-    let (e1, sx1, sy1) = edge(&b, &c);
-    let (e2, sx2, sy2) = edge(&c, &a);
-
-    // The depth plane is set up only once a sample is found inside: most triangles of a fine
-    // mesh whose bounding box holds a pixel centre still cover none, and the set-up (with its
-    // division) cost more than their edge tests.
-    let mut plane: Option<DepthPlane> = None;
-    let row_start = |y: i64| (win.image_height - 1 - y - win.top) as usize * win.width;
-    if tx1 - tx0 < BOUND_FROM {
-        // Pixel by pixel: the triangles of fine scans cover a pixel or two per row.
-        let (mut r0, mut r1, mut r2) = (e0, e1, e2);
-        for y in ty0..=ty1 {
-            let row = &mut zbuf[row_start(y) + (tx0 - win.x0) as usize..];
-            let (mut f0, mut f1, mut f2) = (r0, r1, r2);
-            for (slot, x) in row.iter_mut().zip(tx0..=tx1) {
-                if (f0 | f1 | f2) >= 0 {
-                    let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
-                    *slot = (*slot).min(p.depth16_at(x as f32, p.dzdy * y as f32));
-                }
-                f0 += sx0;
-                f1 += sx1;
-                f2 += sx2;
-            }
-            r0 += sy0;
-            r1 += sy1;
-            r2 += sy2;
+    let edges = [edge(&a, &b), edge(&b, &c), edge(&c, &a)];
+    let (last, rows) = (tx1 - tx0, ty1 - ty0);
+    // Narrow triangles (most of a mesh's) test every pixel of their box, row by row in
+    // fixed-width lanes of 32-bit edge values, when those hold every value the box takes
+    // (an edge function is linear, so its extremes lie at the box's corners).
+    let fits = edges.iter().all(|&(at, sx, sy)| {
+        [
+            at,
+            at + last * sx,
+            at + rows * sy,
+            at + last * sx + rows * sy,
+        ]
+        .iter()
+        .all(|&v| i32::try_from(v).is_ok())
+    });
+    if last < LANES_BELOW && fits {
+        let plane = DepthPlane::new(&a, &b, &c);
+        let edges = edges.map(|(at, sx, sy)| [at as i32, sx as i32, sy as i32]);
+        let corner = (tx0, ty0, last as i32, rows);
+        if last < 8 {
+            draw_lanes::<8>(zbuf, win, &plane, corner, edges);
+        } else {
+            draw_lanes::<LANES_MAX>(zbuf, win, &plane, corner, edges);
         }
         return;
     }
+    // The depth plane is set up only once a sample is found inside: a large triangle clipped
+    // to the window may cover none, and the set-up has a division.
+    let mut plane: Option<DepthPlane> = None;
+    let [(e0, sx0, sy0), (e1, sx1, sy1), (e2, sx2, sy2)] = edges;
     // Each edge bounds a row's run on one side; its bound moves by a constant step from row to
     // row, kept exact in integers (a quotient and a remainder) without a division per row.
     let mut bounds = [
@@ -534,7 +571,6 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         EdgeBound::new(e1, sx1, sy1),
         EdgeBound::new(e2, sx2, sy2),
     ];
-    let last = tx1 - tx0;
     for y in ty0..=ty1 {
         let (mut lo, mut hi) = (0, last);
         for bound in &mut bounds {
@@ -543,7 +579,7 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
         }
         if lo <= hi {
             let p = plane.get_or_insert_with(|| DepthPlane::new(&a, &b, &c));
-            let row = row_start(y) + (tx0 - win.x0) as usize;
+            let row = win.row_start(y) + (tx0 - win.x0) as usize;
             p.draw_run(
                 &mut zbuf[row + lo as usize..=row + hi as usize],
                 tx0 + lo,
@@ -553,9 +589,52 @@ fn rasterise(zbuf: &mut [u32], win: &Window, mut a: WinVertex, mut b: WinVertex,
     }
 }
 
+/// The rows of a narrow triangle's box from window pixel `(x0, y0)`, `last + 1` columns and
+/// `rows + 1` rows, `N` lanes at a time with no branch per pixel: every lane computes its
+/// edge values and depth and keeps the smaller depth where it is inside. The branches of
+/// testing pixel by pixel (how many columns, which pixel is inside) were mispredicted on most
+/// of the small triangles of a coarse mesh and were most of its render. Lanes past the box
+/// store what they read: `zbuf` has `N` slots beyond its last row for them. `edges` holds each
+/// edge's value at `(x0, y0)`, its step along a row and its step from row to row; values of
+/// lanes past the box may wrap, and are never used.
+#[inline(always)]
+fn draw_lanes<const N: usize>(
+    zbuf: &mut [u32],
+    win: &Window,
+    plane: &DepthPlane,
+    (x0, y0, last, rows): (i64, i64, i32, i64),
+    edges: [[i32; 3]; 3],
+) {
+    let mut values: [[i32; N]; 3] = edges
+        .map(|[at, sx, _]| std::array::from_fn(|k| at.wrapping_add((k as i32).wrapping_mul(sx))));
+    // Exact: columns are below 2^24. (Converting from 64 bits has no vector instruction.)
+    let first = x0 as f32;
+    let xs: [f32; N] = std::array::from_fn(|k| first + k as f32);
+    for y in y0..=y0 + rows {
+        let dzdy_y = plane.dzdy * y as f32;
+        let start = win.row_start(y) + (x0 - win.x0) as usize;
+        let slots = &mut zbuf[start..start + N];
+        for k in 0..N {
+            let inside = ((values[0][k] | values[1][k] | values[2][k]) >= 0) & (k as i32 <= last);
+            // Outside, the cleared value, which no slot is above: every lane stores. (Storing
+            // the slot itself became a masked store, which a later load cannot forward from.)
+            let z16 = plane.depth16_at(xs[k], dzdy_y);
+            slots[k] = slots[k].min(if inside { z16 } else { DEPTH_MAX });
+        }
+        for (lane, [_, _, sy]) in values.iter_mut().zip(edges) {
+            for v in lane.iter_mut() {
+                *v = v.wrapping_add(sy);
+            }
+        }
+    }
+}
+
+/// The most lanes [`draw_lanes`] runs: every narrow triangle's box is this wide at most.
+const LANES_MAX: usize = BOUND_FROM as usize;
+
 /// Triangle bounding boxes this many pixels wide or wider find each row's covered pixels from
-/// their edges' bounds ([`EdgeBound`]); narrower ones test every pixel of the box, which costs
-/// less than the bounds' set-up (two divisions per edge) on the pixel-sized faces of fine scans.
+/// their edges' bounds ([`EdgeBound`]); narrower ones test every pixel of the box in lanes
+/// ([`draw_lanes`]), which costs less than the bounds' set-up (two divisions per edge).
 const BOUND_FROM: i64 = 16;
 
 /// Where one edge function `E(k) = f + k s` (at column offset `k` of a row, `f` growing by `t`
@@ -635,7 +714,7 @@ struct DepthPlane {
 }
 
 impl DepthPlane {
-    #[inline]
+    #[inline(always)]
     fn new(a: &WinVertex, b: &WinVertex, c: &WinVertex) -> Self {
         let x0c = a.x - 0.5;
         let y0c = a.y - 0.5;
@@ -673,7 +752,7 @@ impl DepthPlane {
     /// Draws the run of window row `y` from column `first` into `slots` (one per pixel),
     /// keeping the smaller depth (`GL_LESS`: a tie keeps the triangle drawn first). Without
     /// branches, so that the compiler can do several pixels at once.
-    #[inline]
+    #[inline(always)]
     fn draw_run(&self, slots: &mut [u32], first: i64, y: i64) {
         let dzdy_y = self.dzdy * y as f32;
         let first = first as i32;
@@ -778,8 +857,8 @@ mod tests {
             width: 4,
             image_height: 4,
         };
-        let mut zbuf = vec![DEPTH_MAX; 16];
-        rasterise(&mut zbuf, &win, a, b, c);
+        let mut zbuf = vec![DEPTH_MAX; 16 + LANES_MAX];
+        rasterise::<BOUND_FROM>(&mut zbuf, &win, a, b, c);
         let mut out = Vec::new();
         for y in 0..4 {
             for x in 0..4 {
@@ -789,6 +868,49 @@ mod tests {
             }
         }
         out
+    }
+
+    /// The lanes of narrow triangles draw exactly what the rows' runs draw: random triangles
+    /// up to 20 pixels across (so both lane widths and the boxes too wide for lanes occur),
+    /// partly outside a 24 x 20 window, drawn over each other with random depths.
+    #[test]
+    fn narrow_triangles_draw_in_lanes_what_the_runs_draw() {
+        let win = Window {
+            x0: 0,
+            x1: 23,
+            y0: 0,
+            y1: 19,
+            top: 0,
+            width: 24,
+            image_height: 20,
+        };
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        for mesh in 0..2_000 {
+            let (mut lanes, mut runs) = (vec![DEPTH_MAX; 480 + LANES_MAX], vec![DEPTH_MAX; 480]);
+            for _ in 0..8 {
+                let (cx, cy) = (next(28 * 256) as i64 - 512, next(24 * 256) as i64 - 512);
+                let span = [1, 3, 8, 20][next(4) as usize] * 256;
+                let mut vertex = || {
+                    let mut v = fixed(
+                        cx + next(span as u64) as i64 - span / 2,
+                        cy + next(span as u64) as i64 - span / 2,
+                    );
+                    v.z = next(1 << 20) as f32 / (1 << 20) as f32;
+                    v
+                };
+                let (a, b, c) = (vertex(), vertex(), vertex());
+                rasterise::<BOUND_FROM>(&mut lanes, &win, a, b, c);
+                rasterise::<0>(&mut runs, &win, a, b, c);
+            }
+            assert_eq!(lanes[..480], runs[..], "mesh {mesh}");
+            assert!(lanes[480..].iter().all(|&z| z == DEPTH_MAX), "mesh {mesh}");
+        }
     }
 
     #[test]

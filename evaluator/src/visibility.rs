@@ -39,7 +39,7 @@ impl std::str::FromStr for VisibMode {
 /// Whether a model pixel at distance `d_model` is visible over a test pixel at `d_test`
 /// (both distances from the camera centre, 0 = none). The difference is taken in float32 like
 /// bop_toolkit, which decides pixels lying exactly `delta` behind the surface.
-#[inline]
+#[inline(always)]
 pub fn visible(mode: VisibMode, d_test: f64, d_model: f64, delta: f32) -> bool {
     // `&` and `|`, not `&&` and `||`: no branch, so that loops over pixels run several at once.
     let behind = d_model as f32 - d_test as f32;

@@ -51,7 +51,7 @@ impl PixelRays {
 
     /// The distances of `depths`, pixels of row `y` from column `x`, into `out`: a loop without
     /// branches, which the compiler runs on several pixels at once.
-    #[inline]
+    #[inline(always)]
     fn distances(&self, x: u32, y: u32, depths: &[f32], out: &mut [f64]) {
         let xs = &self.xs[x as usize..x as usize + depths.len()];
         let y = self.ys[y as usize];
@@ -141,28 +141,40 @@ impl GtView {
     /// Row by row without branches (the distances of pixels without surface are computed too,
     /// and are 0): a loop the compiler runs on several pixels at once, faster than skipping them.
     pub fn new(test: &TestImage, render: DepthWindow, params: &VsdParams) -> Self {
-        let delta = params.delta as f32;
         let n = render.data.len();
-        let (mut dist, mut test_dist, mut visib) = (vec![0.0; n], vec![0.0; n], vec![false; n]);
-        let width = render.width as usize;
-        if width > 0 {
-            for (dy, depths) in render.data.chunks_exact(width).enumerate() {
-                let y = render.y0 + dy as u32;
-                let row = dy * width..(dy + 1) * width;
-                let (d, t) = (&mut dist[row.clone()], &mut test_dist[row.clone()]);
-                test.rays.distances(render.x0, y, depths, d);
-                test.rays
-                    .distances(render.x0, y, test.row(y, render.x0, width), t);
-                for ((v, &d), &t) in visib[row].iter_mut().zip(&*d).zip(&*t) {
-                    *v = visible(params.visib_mode, t, d, delta);
-                }
-            }
-        }
-        GtView {
+        let mut view = GtView {
             window: render,
-            dist,
-            test_dist,
-            visib,
+            dist: vec![0.0; n],
+            test_dist: vec![0.0; n],
+            visib: vec![false; n],
+        };
+        gt_view_maps(test, &mut view, params);
+        view
+    }
+}
+
+/// The maps of [`GtView::new`], built also for AVX2 (see `render::draw`): with it the square
+/// roots run four at once instead of two, and each is the same IEEE operation.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn gt_view_maps(test: &TestImage, view: &mut GtView, params: &VsdParams) {
+    let delta = params.delta as f32;
+    let render = &view.window;
+    let width = render.width as usize;
+    if width == 0 {
+        return;
+    }
+    for (dy, depths) in render.data.chunks_exact(width).enumerate() {
+        let y = render.y0 + dy as u32;
+        let row = dy * width..(dy + 1) * width;
+        let (d, t) = (
+            &mut view.dist[row.clone()],
+            &mut view.test_dist[row.clone()],
+        );
+        test.rays.distances(render.x0, y, depths, d);
+        test.rays
+            .distances(render.x0, y, test.row(y, render.x0, width), t);
+        for ((v, &d), &t) in view.visib[row].iter_mut().zip(&*d).zip(&*t) {
+            *v = visible(params.visib_mode, t, d, delta);
         }
     }
 }
@@ -184,7 +196,9 @@ fn columns_at(w: &DepthWindow, y: u32) -> std::ops::Range<u32> {
 /// visible pixels count), both windows, and the estimate's alone; no pixel asks which window
 /// holds it. Within a run each pixel is computed without branches (the compiler does several
 /// at once): its membership of the union and the intersection, and for the intersection the
-/// discrepancy, kept per row and compared with each tau after.
+/// discrepancy, kept per row and compared with each tau after. Built also for AVX2 (see
+/// `render::draw`).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 pub fn vsd(
     test: &TestImage,
     gt: &GtView,
