@@ -231,16 +231,10 @@ pub(crate) fn build(
     let mut per_column: Vec<Vec<(f64, Scored)>> = Vec::with_capacity(columns.len());
     for (ci, col) in columns.iter().enumerate() {
         let spec = &protocol.errors[col.error];
-        let scored = spec
-            .thresholds
-            .iter()
-            .map(|&th| {
-                let s = targets.scores(errors, th, |e, i| {
-                    normalised_error(dataset, &spec.kind, e, e.errors[ci][i])
-                });
-                (th, s)
-            })
-            .collect();
+        let scored = targets.scores_at(errors, &spec.thresholds, |e, i| {
+            normalised_error(dataset, &spec.kind, e, e.errors[ci][i])
+        });
+        let scored = spec.thresholds.iter().copied().zip(scored).collect();
         per_column.push(scored);
     }
 

@@ -95,6 +95,15 @@ pub fn localization_scores(
     Targets::new(images, object_ids, scene_ids, n_top).scores(errors, threshold, error)
 }
 
+/// What matching at one threshold has counted so far.
+struct Tally {
+    obj_tps: BTreeMap<u32, usize>,
+    scene_tps: BTreeMap<u32, usize>,
+    tps: usize,
+    matched: Vec<Vec<bool>>,
+    image_tps: Vec<u32>,
+}
+
 /// The targets of the images, counted once: they do not depend on the threshold, and a
 /// report scores at up to 120 thresholds.
 pub struct Targets<'a> {
@@ -160,33 +169,64 @@ impl<'a> Targets<'a> {
         threshold: f64,
         error: impl Fn(&EstimateErrors, usize) -> f64 + Copy,
     ) -> Scored {
-        let (obj_targets, scene_targets) = (&self.obj_targets, &self.scene_targets);
-        let mut obj_tps: BTreeMap<u32, usize> = obj_targets.keys().map(|&o| (o, 0)).collect();
-        let mut scene_tps: BTreeMap<u32, usize> = scene_targets.keys().map(|&s| (s, 0)).collect();
-        let mut tps = 0usize;
-        let mut all_matched = Vec::with_capacity(self.images.len());
-        let mut image_tps = Vec::with_capacity(self.images.len());
+        let mut scored = self.scores_at(errors, &[threshold], error);
+        scored.swap_remove(0)
+    }
+
+    /// Scores at each of `thresholds`, in their order. Every image is matched at every
+    /// threshold while its estimates' errors are in the cache: a report scores up to 120
+    /// thresholds, and visiting all estimates once per threshold was bound by memory.
+    pub fn scores_at(
+        &self,
+        errors: &[EstimateErrors],
+        thresholds: &[f64],
+        error: impl Fn(&EstimateErrors, usize) -> f64 + Copy,
+    ) -> Vec<Scored> {
+        let mut tallies: Vec<Tally> = thresholds
+            .iter()
+            .map(|_| Tally {
+                obj_tps: self.obj_targets.keys().map(|&o| (o, 0)).collect(),
+                scene_tps: self.scene_targets.keys().map(|&s| (s, 0)).collect(),
+                tps: 0,
+                matched: Vec::with_capacity(self.images.len()),
+                image_tps: Vec::with_capacity(self.images.len()),
+            })
+            .collect();
         for (im, valid) in self.images.iter().zip(&self.valid) {
-            let tps_before = tps;
-            let mut matched = vec![false; im.gts.len()];
-            for (_, ests) in &im.estimates {
-                match_image_object(
-                    ests.iter().map(|&i| &errors[i]),
-                    self.n_top,
-                    threshold,
-                    valid,
-                    &mut matched,
-                    error,
-                );
+            for (tally, &threshold) in tallies.iter_mut().zip(thresholds) {
+                let tps_before = tally.tps;
+                let mut matched = vec![false; im.gts.len()];
+                for (_, ests) in &im.estimates {
+                    match_image_object(
+                        ests.iter().map(|&i| &errors[i]),
+                        self.n_top,
+                        threshold,
+                        valid,
+                        &mut matched,
+                        error,
+                    );
+                }
+                for (g, _) in im.gts.iter().zip(&matched).filter(|(g, m)| g.2 && **m) {
+                    tally.tps += 1;
+                    *tally.obj_tps.entry(g.0).or_default() += 1;
+                    *tally.scene_tps.entry(im.scene_id).or_default() += 1;
+                }
+                tally.matched.push(matched);
+                tally.image_tps.push((tally.tps - tps_before) as u32);
             }
-            for (g, _) in im.gts.iter().zip(&matched).filter(|(g, m)| g.2 && **m) {
-                tps += 1;
-                *obj_tps.entry(g.0).or_default() += 1;
-                *scene_tps.entry(im.scene_id).or_default() += 1;
-            }
-            all_matched.push(matched);
-            image_tps.push((tps - tps_before) as u32);
         }
+        tallies.into_iter().map(|t| self.finish(t)).collect()
+    }
+
+    fn finish(&self, tally: Tally) -> Scored {
+        let (obj_targets, scene_targets) = (&self.obj_targets, &self.scene_targets);
+        let Tally {
+            obj_tps,
+            scene_tps,
+            tps,
+            matched: all_matched,
+            image_tps,
+        } = tally;
         let targets = self.targets;
         let gt_count = self.gt_count;
 
