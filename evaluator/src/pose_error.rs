@@ -43,13 +43,19 @@ fn min_over_symmetries<T>(
     dist_sq: impl Fn(&T, usize) -> f64,
 ) -> f64 {
     let mut best_sq = f64::INFINITY;
+    // The point that last decided a symmetry: neighbouring symmetries (the steps of a
+    // continuous one) are decided by the same point, so it is visited first, and a symmetry that
+    // cannot win usually stops at its first point. The maximum does not depend on the order.
+    let mut first = 0;
     for sym in syms {
         let prepared = prepare(sym);
         let mut worst_sq = 0.0f64;
-        for i in 0..n_points {
+        let start = first;
+        for i in (0..n_points).take(1).map(|_| start).chain(0..n_points) {
             let d = dist_sq(&prepared, i);
             if d > worst_sq {
                 worst_sq = d;
+                first = i;
                 if worst_sq >= best_sq {
                     break;
                 }
