@@ -51,7 +51,11 @@ fn min_over_symmetries<T>(
         let prepared = prepare(sym);
         let mut worst_sq = 0.0f64;
         let start = first;
-        for i in (0..n_points).take(1).map(|_| start).chain(0..n_points) {
+        for i in (n_points > 0)
+            .then_some(start)
+            .into_iter()
+            .chain(0..n_points)
+        {
             let d = dist_sq(&prepared, i);
             if d > worst_sq {
                 worst_sq = d;
